@@ -1,0 +1,5 @@
+import sys
+
+from contextros.cli import main
+
+sys.exit(main())
