@@ -1,0 +1,126 @@
+"""The public activation API: decisive, scoped and atomic switches, critical sections.
+
+Decisive switches (`activate`, `deactivate`, `switch`, `set_active`) change the
+process-wide configuration, as a ROS node following the Layer manager needs. Scoped
+ones (`activated`, `deactivated`) hold only for the enclosed block, in the current
+thread or asyncio task. Every switch is validated against the layers' relations
+before anything changes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import AbstractContextManager, contextmanager
+
+from contextros.core.configuration import Configuration, plan, validate
+from contextros.core.layer import Layer, resolve
+from contextros.core.runtime import RUNTIME, SwitchEvent, SwitchResult
+from contextros.errors import RelationError
+
+LayerLike = Layer | str
+
+
+def _resolve_all(layers: Iterable[LayerLike]) -> tuple[Layer, ...]:
+    if isinstance(layers, (str, Layer)):
+        layers = [layers]
+    return tuple(resolve(layer) for layer in layers)
+
+
+def activate(*layers: LayerLike) -> SwitchResult:
+    """Activate `layers` process-wide (newest outermost). See `switch`."""
+    return switch(activate=layers)
+
+
+def deactivate(*layers: LayerLike) -> SwitchResult:
+    """Deactivate `layers` process-wide. See `switch`."""
+    return switch(deactivate=layers)
+
+
+def switch(
+    activate: Iterable[LayerLike] = (), deactivate: Iterable[LayerLike] = ()
+) -> SwitchResult:
+    """Deactivate, then activate, as one atomic transition.
+
+    The resulting configuration is validated as a whole; a RelationError naming the
+    layers leaves everything unchanged. Inside a critical section the switch is
+    deferred and the returned result settles when the section ends.
+    """
+    on, off = _resolve_all(activate), _resolve_all(deactivate)
+    return RUNTIME.request(lambda current: plan(current, on, off))
+
+
+def set_active(layers: Iterable[LayerLike]) -> SwitchResult:
+    """Make the decisive configuration exactly `layers`, in this (activation) order."""
+    wanted = _resolve_all(layers)
+
+    def exactly(current: Configuration) -> Configuration:
+        validate(wanted)
+        return wanted
+
+    return RUNTIME.request(exactly)
+
+
+def active_layers() -> Configuration:
+    """The layers active for the caller (decisive plus its scopes), oldest first."""
+    return RUNTIME.effective()
+
+
+def current_epoch() -> int:
+    """How many decisive switches have applied in this process."""
+    return RUNTIME.epoch
+
+
+@contextmanager
+def _scoped(steps: tuple[tuple[bool, Layer], ...]) -> Iterator[Configuration]:
+    scope = RUNTIME.enter_scope(steps)
+    token = RUNTIME.scope.set(scope)
+    configuration = scope.configuration()
+    del scope
+    try:
+        yield configuration
+    finally:
+        RUNTIME.scope.reset(token)
+        RUNTIME.leave_scope()
+
+
+def activated(*layers: LayerLike) -> AbstractContextManager[Configuration]:
+    """Activate `layers` for the enclosed block only, in this thread or asyncio task.
+
+    Tasks and threads started inside with a copied context see the layers too, for as
+    long as they run. Relations are checked on entry.
+    """
+    return _scoped(tuple((True, layer) for layer in _resolve_all(layers)))
+
+
+def deactivated(*layers: LayerLike) -> AbstractContextManager[Configuration]:
+    """Deactivate `layers` for the enclosed block only, in this thread or asyncio task."""
+    return _scoped(tuple((False, layer) for layer in _resolve_all(layers)))
+
+
+def critical() -> AbstractContextManager[None]:
+    """A region during which no decisive switch applies.
+
+    Switches requested meanwhile, from any thread, are queued and applied in request
+    order when the last open critical section ends; their SwitchResults settle then.
+    """
+    return RUNTIME.critical()
+
+
+def subscribe(observer: Callable[[SwitchEvent], object]) -> Callable[[], None]:
+    """Call `observer(event)` after every applied decisive switch; returns unsubscribe."""
+    return RUNTIME.subscribe(observer)
+
+
+__all__ = [
+    "RelationError",
+    "activate",
+    "activated",
+    "active_layers",
+    "critical",
+    "current_epoch",
+    "deactivate",
+    "deactivated",
+    "set_active",
+    "subscribe",
+    "switch",
+]
