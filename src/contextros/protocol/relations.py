@@ -1,0 +1,79 @@
+"""Layer declarations as participants announce them, and the relation check the manager runs.
+
+The manager knows no layer by itself: it learns layers and their relations (excludes,
+requires, group) from the participants, and validates every activation against the union
+of what they declared, so a node cannot be asked for a configuration another node forbids.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class LayerDeclaration:
+    """A layer a participant implements, with the relations it declares for it."""
+
+    name: str
+    excludes: frozenset[str] = frozenset()
+    requires: frozenset[str] = frozenset()
+    group: str = ""
+
+    def merged(self, other: LayerDeclaration) -> LayerDeclaration:
+        """The union of two nodes' declarations of one layer (the stricter reading)."""
+        groups = sorted({g for g in (self.group, other.group) if g})
+        return LayerDeclaration(
+            name=self.name,
+            excludes=self.excludes | other.excludes,
+            requires=self.requires | other.requires,
+            group=",".join(groups),
+        )
+
+    @property
+    def groups(self) -> frozenset[str]:
+        return frozenset(g for g in self.group.split(",") if g)
+
+
+def merge_declarations(
+    declarations: Iterable[LayerDeclaration],
+) -> dict[str, LayerDeclaration]:
+    merged: dict[str, LayerDeclaration] = {}
+    for declaration in declarations:
+        known = merged.get(declaration.name)
+        merged[declaration.name] = declaration if known is None else known.merged(declaration)
+    return merged
+
+
+def relation_violations(
+    active: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> list[str]:
+    """Every relation the configuration `active` breaks, as sentences naming the layers."""
+    active_set = set(active)
+    problems: list[str] = []
+    for name in sorted(active_set):
+        declaration = declarations.get(name)
+        if declaration is None:
+            continue
+        for excluded in sorted(declaration.excludes & active_set):
+            # Report each mutually exclusive pair once.
+            mutual = name in _excludes_of(excluded, declarations)
+            if excluded != name and (excluded > name or not mutual):
+                problems.append(f"{name} excludes {excluded}, both would be active")
+        for required in sorted(declaration.requires - active_set):
+            problems.append(f"{name} requires {required}, which would not be active")
+    members: dict[str, list[str]] = {}
+    for name in sorted(active_set):
+        declaration = declarations.get(name)
+        for group in sorted(declaration.groups) if declaration else ():
+            members.setdefault(group, []).append(name)
+    for group, names in sorted(members.items()):
+        if len(names) > 1:
+            listing = ", ".join(names)
+            problems.append(f"group {group!r} allows one active layer, would have {listing}")
+    return problems
+
+
+def _excludes_of(name: str, declarations: Mapping[str, LayerDeclaration]) -> frozenset[str]:
+    declaration = declarations.get(name)
+    return declaration.excludes if declaration else frozenset()

@@ -1,0 +1,67 @@
+"""The manager's layer state: a numbered full snapshot of the active layers.
+
+States are never deltas: a participant that missed or reordered some of them still ends
+on the right configuration by applying the newest one, and refuses anything older.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+
+from contextros.protocol.errors import StateFileError
+
+
+@dataclass(frozen=True)
+class LayerState:
+    """One configuration of the whole system, as the manager decided it.
+
+    `active` is in activation order: the last layer is the outermost one (its partials run
+    first), exactly what the core's `set_active` expects.
+    """
+
+    epoch: int
+    active: tuple[str, ...] = ()
+    requester: str = ""
+    reason: str = ""
+    stamp: float = 0.0
+    manager_id: str = field(default="", compare=False)
+
+    def to_json(self) -> str:
+        return json.dumps(
+            {
+                "epoch": self.epoch,
+                "active": list(self.active),
+                "requester": self.requester,
+                "reason": self.reason,
+                "stamp": self.stamp,
+            },
+            indent=2,
+        )
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "<state>") -> LayerState:
+        """Parse a saved state; a damaged file is an error, never a silent epoch 0."""
+        try:
+            data = json.loads(text)
+            epoch = data["epoch"]
+            active = data["active"]
+            if not isinstance(epoch, int) or epoch < 0:
+                raise ValueError(f"epoch must be a non-negative integer, got {epoch!r}")
+            if not isinstance(active, list) or not all(isinstance(n, str) for n in active):
+                raise ValueError("active must be a list of layer names")
+            return cls(
+                epoch=epoch,
+                active=tuple(active),
+                requester=str(data.get("requester", "")),
+                reason=str(data.get("reason", "")),
+                stamp=float(data.get("stamp", 0.0)),
+            )
+        except (ValueError, KeyError, TypeError) as error:
+            raise StateFileError(
+                f"{source}: not a ContextROS state file ({error}); "
+                "fix or delete it to start from the participants' state"
+            ) from error
+
+
+INITIAL_STATE = LayerState(epoch=0, active=(), requester="", reason="initial")

@@ -1,0 +1,71 @@
+"""A participant's side of the protocol: never back to an older epoch, honest acknowledgements."""
+
+from __future__ import annotations
+
+from contextros.protocol import (
+    ApplyState,
+    LayerDeclaration,
+    LayerState,
+    ParticipantProtocol,
+    PublishStatus,
+)
+
+
+def participant() -> ParticipantProtocol:
+    return ParticipantProtocol("/p", "inc-1", (LayerDeclaration("Night"),), heartbeat_period=0.25)
+
+
+def test_new_state_is_applied_and_acknowledged() -> None:
+    p = participant()
+    state = LayerState(3, ("Night",))
+    assert p.receive_state(state) == [ApplyState(state)]
+    (action,) = p.applied(state, now=0.0)
+    assert isinstance(action, PublishStatus)
+    assert (action.report.applied_epoch, action.report.active) == (3, ("Night",))
+
+
+def test_stale_and_duplicate_states_are_ignored() -> None:
+    p = participant()
+    newer, older = LayerState(5, ("Night",)), LayerState(4, ())
+    p.applied(newer, now=0.0)
+    assert p.receive_state(older) == []
+    assert p.receive_state(newer) == []
+    assert p.applied(older, now=0.1) == [] and p.applied_epoch == 5
+
+
+def test_deferred_state_is_reported_pending_and_acknowledged_only_once_applied() -> None:
+    p = participant()
+    state = LayerState(2, ("Night",))
+    p.receive_state(state)
+    (deferred,) = p.deferred(state, now=0.0)
+    assert isinstance(deferred, PublishStatus)
+    assert deferred.report.in_critical_section and deferred.report.pending_epoch == 2
+    assert deferred.report.applied_epoch == 0
+    assert p.receive_state(state) == [], "a scheduled epoch is not applied twice"
+    (applied,) = p.applied(state, now=0.5)
+    assert isinstance(applied, PublishStatus)
+    assert applied.report.applied_epoch == 2 and not applied.report.in_critical_section
+
+
+def test_newer_state_while_deferred_is_passed_on_behind_it() -> None:
+    p = participant()
+    p.deferred(LayerState(2, ("Night",)), now=0.0)
+    assert p.receive_state(LayerState(3, ())) == [ApplyState(LayerState(3, ()))]
+
+
+def test_failure_is_reported_and_not_retried() -> None:
+    p = participant()
+    state = LayerState(2, ("Night",))
+    (action,) = p.failed(state, "Night requires Dark", now=0.0)
+    assert isinstance(action, PublishStatus)
+    assert action.report.failed_epoch == 2 and "Night requires Dark" in action.report.error
+    assert p.receive_state(state) == []
+
+
+def test_heartbeat_period() -> None:
+    p = participant()
+    assert len(p.announce(0.0)) == 1
+    assert p.tick(0.1) == []
+    assert len(p.tick(0.26)) == 1
+    (leaving,) = p.leave(0.3)
+    assert isinstance(leaving, PublishStatus) and leaving.report.leaving
