@@ -10,7 +10,9 @@ from contextros.errors import LayerDefinitionError
 Hook = Callable[[], object]
 
 
-def _names(value: Iterable[Layer | str] | Layer | str, *, layer: str, relation: str) -> frozenset[str]:
+def _names(
+    value: Iterable[Layer | str] | Layer | str, *, layer: str, relation: str
+) -> frozenset[str]:
     items: Iterable[Layer | str] = [value] if isinstance(value, (Layer, str)) else value
     names = set()
     for item in items:
@@ -46,8 +48,15 @@ class Layer:
     run (in activation order).
     """
 
-    __slots__ = ("description", "excludes", "group", "name", "on_activate", "on_deactivate",
-                 "requires")
+    __slots__ = (
+        "description",
+        "excludes",
+        "group",
+        "name",
+        "on_activate",
+        "on_deactivate",
+        "requires",
+    )
 
     name: str
     description: str

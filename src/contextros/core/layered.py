@@ -47,7 +47,7 @@ class LayeredFunction:
         self.stable.__wrapped__ = stub  # type: ignore[attr-defined]
         self.stable.partial = self.partial  # type: ignore[attr-defined]
         self.stable.__contextros__ = self  # type: ignore[attr-defined]
-        self.global_head: Callable[..., Any] = self._missing(())
+        self.global_head: Callable[..., Any] = self._missing()
 
     def __repr__(self) -> str:
         return f"<layered {self.qualname} partials={sorted(self.partials)}>"
@@ -94,15 +94,13 @@ class LayeredFunction:
         )
         head = self._chains.get(relevant)
         if head is None:
-            head = self._compose(relevant, configuration)
+            head = self._compose(relevant)
             self._chains[relevant] = head
         return head
 
-    def _compose(
-        self, relevant: tuple[str, ...], configuration: Configuration
-    ) -> Callable[..., Any]:
+    def _compose(self, relevant: tuple[str, ...]) -> Callable[..., Any]:
         if not relevant:
-            return self.base if self.base is not None else self._missing(configuration)
+            return self.base if self.base is not None else self._missing()
         following: Callable[..., Any] = (
             self.base if self.base is not None else self._exhausted(relevant[-1])
         )
@@ -118,11 +116,13 @@ class LayeredFunction:
             self.stable.__globals__[self._dispatch_key] = head
             self.stable.__code__ = self._trampoline
 
-    def _missing(self, configuration: Configuration) -> Callable[..., Any]:
-        active = ", ".join(layer.name for layer in configuration) or "none"
+    def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname
 
         def no_implementation(*args: Any, **kwargs: Any) -> Any:
+            from contextros.core.runtime import RUNTIME
+
+            active = ", ".join(layer.name for layer in RUNTIME.effective()) or "none"
             raise NoImplementationError(
                 f"{qualname}() has no base implementation and no active layer provides it "
                 f"(active layers: {active})"

@@ -18,6 +18,7 @@ from __future__ import annotations
 import dis
 import functools
 import itertools
+import sys
 from collections.abc import Callable
 from contextvars import ContextVar
 from types import CodeType, FunctionType
@@ -136,7 +137,9 @@ def copy_function(function: FunctionType, code: CodeType | None = None) -> Funct
     return copy
 
 
-def link(partial: FunctionType, use: ProceedUse, following: Callable[..., Any]) -> Callable[..., Any]:
+def link(
+    partial: FunctionType, use: ProceedUse, following: Callable[..., Any]
+) -> Callable[..., Any]:
     """`partial` with its `proceed` bound to `following`."""
     if not use.names:
         return partial
@@ -161,7 +164,7 @@ def _cells_match(a: tuple[Any, ...] | None, b: tuple[Any, ...] | None) -> bool:
         return True
     if a is None or b is None or len(a) != len(b):
         return False
-    for left, right in zip(a, b):
+    for left, right in zip(a, b, strict=False):
         if left is right:
             continue
         try:
@@ -183,7 +186,7 @@ def _same_value(a: object, b: object) -> bool:
 
 def _same_defaults(a: tuple[Any, ...] | None, b: tuple[Any, ...] | None) -> bool:
     a, b = a or (), b or ()
-    return len(a) == len(b) and all(_same_value(x, y) for x, y in zip(a, b))
+    return len(a) == len(b) and all(_same_value(x, y) for x, y in zip(a, b, strict=False))
 
 
 def _same_kwdefaults(a: dict[str, Any] | None, b: dict[str, Any] | None) -> bool:
@@ -222,6 +225,7 @@ def trampoline_code(key: str, freevars: tuple[str, ...], qualname: str) -> CodeT
         raise LayerDefinitionError(
             f"cannot build a dispatcher for {qualname}: its closure {freevars} is not supported"
         )
-    return inner.replace(co_name=qualname.rpartition(".")[2], co_qualname=qualname) if hasattr(
-        inner, "co_qualname"
-    ) else inner.replace(co_name=qualname.rpartition(".")[2])
+    inner = inner.replace(co_name=qualname.rpartition(".")[2])
+    if sys.version_info >= (3, 11):
+        inner = inner.replace(co_qualname=qualname)
+    return inner

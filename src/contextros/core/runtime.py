@@ -85,7 +85,7 @@ class _Scope:
     runtime uses the live count to know whether calls must consult context variables.
     """
 
-    __slots__ = ("_cached", "_runtime", "steps", "__weakref__")
+    __slots__ = ("__weakref__", "_cached", "_runtime", "steps")
 
     def __init__(self, runtime: Runtime, steps: tuple[tuple[bool, Layer], ...]) -> None:
         self._runtime = runtime
@@ -258,6 +258,24 @@ class Runtime:
         with self.lock:
             if not self._live_scopes:
                 self._reinstall_all()
+
+    def reset(self) -> None:
+        """Back to no active layers, no observers and no pending switches (for tests).
+
+        The epoch keeps counting up: epochs never repeat in a process.
+        """
+        with self.lock:
+            for _, result in self._deferred:
+                result._settle(None, None)
+            self._deferred.clear()
+            self._critical_depth = 0
+            self._observers.clear()
+            heads = {function: function.head_for(()) for function in list(self._functions)}
+            self.active = ()
+            self.epoch += 1
+            for function, head in heads.items():
+                function.global_head = head
+            self._reinstall_all()
 
     def effective(self) -> Configuration:
         scope = self.scope.get()
