@@ -1,0 +1,169 @@
+"""Dispatch cost of the COP core, side by side with a plain call and with ContextPy3.
+
+Same workload everywhere: a method computing ``x + 1`` (partials add their own ``+ 1``).
+Cases: no active layer; one active partial that does not proceed; one that proceeds to
+the base; three stacked partials that proceed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from benchmarks.timing import ns_per_call
+from contextros import Layer, layered, proceed, set_active
+
+TARGETS = {
+    "no active layer": 1.2,
+    "one partial, no proceed": 1.2,
+    "one partial, proceeds": 2.5,
+    "three partials, proceed": None,
+}
+
+L1, L2, L3 = Layer("BenchL1"), Layer("BenchL2"), Layer("BenchL3")
+
+
+class Plain:
+    def step(self, x: int) -> int:
+        return x + 1
+
+
+class Layered:
+    @layered
+    def step(self, x: int) -> int:
+        return x + 1
+
+    @step.partial(L1)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+    @step.partial(L2)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+    @step.partial(L3)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+
+class NoProceed:
+    @layered
+    def step(self, x: int) -> int:
+        return x + 1
+
+    @step.partial(L1)
+    def step(self, x: int) -> int:
+        return x + 2
+
+
+def _contextros_cases() -> dict[str, float]:
+    plain, layered_obj, no_proceed = Plain(), Layered(), NoProceed()
+    results: dict[str, float] = {}
+    for case, layers, obj in [
+        ("no active layer", [], layered_obj),
+        ("one partial, no proceed", [L1], no_proceed),
+        ("one partial, proceeds", [L1], layered_obj),
+        ("three partials, proceed", [L1, L2, L3], layered_obj),
+    ]:
+        set_active(layers)
+        timed = ns_per_call(
+            {"plain": ("o.step(1)", {"o": plain}), case: ("o.step(1)", {"o": obj})}
+        )
+        results[case] = timed[case]
+        results.setdefault("plain", timed["plain"])
+        results["plain"] = min(results["plain"], timed["plain"])
+    set_active([])
+    return results
+
+
+def _contextpy3_cases() -> dict[str, float] | None:
+    try:
+        import contextpy3 as cp
+    except ImportError:
+        return None
+    c1, c2, c3 = cp.Layer("C1"), cp.Layer("C2"), cp.Layer("C3")
+
+    class CpLayered:
+        @cp.base
+        def step(self, x: int) -> int:
+            return x + 1
+
+        @cp.around(c1)
+        def step(self, x: int) -> int:
+            return cp.proceed(x) + 1
+
+        @cp.around(c2)
+        def step(self, x: int) -> int:
+            return cp.proceed(x) + 1
+
+        @cp.around(c3)
+        def step(self, x: int) -> int:
+            return cp.proceed(x) + 1
+
+    class CpNoProceed:
+        @cp.base
+        def step(self, x: int) -> int:
+            return x + 1
+
+        @cp.around(c1)
+        def step(self, x: int) -> int:
+            return x + 2
+
+    results: dict[str, float] = {}
+    obj, no_proceed = CpLayered(), CpNoProceed()
+    for case, layers, target in [
+        ("no active layer", [], obj),
+        ("one partial, no proceed", [c1], no_proceed),
+        ("one partial, proceeds", [c1], obj),
+        ("three partials, proceed", [c1, c2, c3], obj),
+    ]:
+        for layer in layers:
+            cp.global_activate_layer(layer)
+        results[case] = ns_per_call({case: ("o.step(1)", {"o": target})}, number=20_000)[case]
+        for layer in layers:
+            cp.global_deactivate_layer(layer)
+    return results
+
+
+def run() -> list[dict[str, Any]]:
+    ours = _contextros_cases()
+    theirs = _contextpy3_cases()
+    plain = ours["plain"]
+    rows: list[dict[str, Any]] = [{"case": "plain method", "ns": plain, "ratio": 1.0}]
+    for case, target in TARGETS.items():
+        row: dict[str, Any] = {
+            "case": case,
+            "ns": ours[case],
+            "ratio": ours[case] / plain,
+            "target": target,
+        }
+        if theirs is not None:
+            row["contextpy3_ns"] = theirs[case]
+            row["speedup_vs_contextpy3"] = theirs[case] / ours[case]
+        rows.append(row)
+    return rows
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    lines = [
+        "| case | ContextROS ns/call | x plain | target | ContextPy3 ns/call | ContextROS faster by |",
+        "|---|---:|---:|---|---:|---:|",
+    ]
+    for row in rows:
+        target = row.get("target")
+        verdict = ""
+        if target is not None:
+            verdict = f"<= {target}x: {'met' if row['ratio'] <= target else 'MISSED'}"
+        cp_ns = f"{row['contextpy3_ns']:.0f}" if "contextpy3_ns" in row else ""
+        speed = row.get("speedup_vs_contextpy3")
+        speed_text = (
+            f"{speed:.0f}x ({'met' if speed >= 50 else 'MISSED'} >= 50x)" if speed else ""
+        )
+        lines.append(
+            f"| {row['case']} | {row['ns']:.1f} | {row['ratio']:.2f} | {verdict} | "
+            f"{cp_ns} | {speed_text} |"
+        )
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(markdown(run()))
