@@ -1,0 +1,436 @@
+"""The checker: consistency errors and the warnings of the layer interaction problem.
+
+Errors make a file uncompilable (unknown layers, duplicate definitions, incompatible
+signatures). Warnings point at behaviour that depends on something the file does not
+say: two layers refining the same method that may be active together with no declared
+order, `requires` cycles, and layers that the declared relations make impossible to
+activate.
+"""
+
+from __future__ import annotations
+
+import ast
+from collections.abc import Iterable
+from itertools import combinations
+from pathlib import Path
+
+from contextros.language.diagnostics import (
+    Diagnostic,
+    DiagnosticSink,
+    LayerSyntaxError,
+    sorted_diagnostics,
+)
+from contextros.language.parser import parse_with_diagnostics
+from contextros.language.syntax import Function, LayerDecl, LayerFile, Ref
+
+# Names the compiled module defines besides the generated functions and the layers.
+RESERVED_NAMES = frozenset({"proceed"})
+# Decorators that turn a function into something the core cannot layer.
+DESCRIPTORS = frozenset({"staticmethod", "classmethod", "property"})
+
+
+def check_source(source: str, path: str = "<layers>") -> list[Diagnostic]:
+    """Every diagnostic of a layer file, sorted by position. Never raises them."""
+    layer_file, found = parse_with_diagnostics(source, path)
+    return sorted_diagnostics([*found, *check(layer_file)])
+
+
+def check_file(path: str | Path) -> list[Diagnostic]:
+    """`check_source` for a file on disk (an unreadable file is an error at 1:1)."""
+    try:
+        source = Path(path).read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as error:
+        sink = DiagnosticSink(str(path), "")
+        sink.error(f"cannot read the layer file: {error}", 1, 1)
+        return sink.items
+    return check_source(source, str(path))
+
+
+def checked(source: str, path: str = "<layers>") -> tuple[LayerFile, list[Diagnostic]]:
+    """Parse and check; raise `LayerSyntaxError` on errors, else return the tree and warnings."""
+    layer_file, found = parse_with_diagnostics(source, path)
+    diagnostics = sorted_diagnostics([*found, *check(layer_file)])
+    errors = [d for d in diagnostics if d.is_error]
+    if errors:
+        raise LayerSyntaxError(errors)
+    return layer_file, diagnostics
+
+
+def check(layer_file: LayerFile) -> list[Diagnostic]:
+    """The semantic checks of a parsed (possibly partial) layer file."""
+    return _Checker(layer_file).run()
+
+
+def header_names(module: ast.Module | None) -> tuple[set[str], bool]:
+    """Names the header binds at module level, and whether a `*` import hides some."""
+    names: set[str] = set()
+    star = False
+    pending: list[ast.stmt] = list(module.body) if module is not None else []
+    while pending:
+        stmt = pending.pop()
+        if isinstance(stmt, (ast.Import, ast.ImportFrom)):
+            for alias in stmt.names:
+                if alias.name == "*":
+                    star = True
+                else:
+                    names.add(alias.asname or alias.name.split(".")[0])
+        elif isinstance(stmt, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            names.add(stmt.name)
+        elif isinstance(stmt, (ast.If, ast.Try, ast.With, ast.For, ast.While)):
+            for attr in ("body", "orelse", "finalbody", "handlers"):
+                pending.extend(getattr(stmt, attr, []))
+        elif isinstance(stmt, ast.ExceptHandler):
+            pending.extend(stmt.body)
+        if isinstance(stmt, (ast.Assign, ast.AnnAssign, ast.AugAssign, ast.For, ast.With)):
+            for node in ast.walk(stmt):
+                if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+                    names.add(node.id)
+    return names, star
+
+
+def signature_shape(function: Function) -> tuple[object, ...]:
+    """What callers rely on: parameter kinds, names and which ones have defaults."""
+    args = function.node.args
+    positional = [*args.posonlyargs, *args.args]
+    with_default = len(positional) - len(args.defaults)
+    return (
+        tuple(a.arg for a in args.posonlyargs),
+        tuple((a.arg, i >= with_default) for i, a in enumerate(positional)),
+        args.vararg is not None,
+        tuple(
+            (a.arg, d is not None) for a, d in zip(args.kwonlyargs, args.kw_defaults, strict=True)
+        ),
+        args.kwarg is not None,
+    )
+
+
+def signature_text(function: Function) -> str:
+    args = ast.unparse(function.node.args)
+    prefix = "async " if function.is_async else ""
+    return f"{prefix}{function.key}({args})"
+
+
+def calls_proceed(function: Function) -> bool:
+    return any(
+        isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "proceed"
+        for node in ast.walk(function.node)
+    )
+
+
+class _Checker:
+    def __init__(self, layer_file: LayerFile) -> None:
+        self.file = layer_file
+        self.sink = DiagnosticSink(layer_file.path, layer_file.source)
+        self.layers: dict[str, LayerDecl] = {}
+        self.group_of: dict[str, str] = {}
+        self.excluded: set[frozenset[str]] = set()
+
+    def run(self) -> list[Diagnostic]:
+        self._declarations()
+        self._groups()
+        self._relations()
+        self._functions()
+        self._names()
+        self._interaction()
+        return self.sink.items
+
+    # -- declarations and relations ---------------------------------------------------
+
+    def _declarations(self) -> None:
+        for layer in self.file.layers:
+            first = self.layers.get(layer.name)
+            if first is not None:
+                self.sink.error(
+                    f"layer {layer.name!r} is already declared at line {first.at.line}",
+                    layer.at.line,
+                    layer.at.col,
+                )
+                continue
+            self.layers[layer.name] = layer
+
+    def _known(self, ref: Ref, context: str) -> bool:
+        if ref.name in self.layers:
+            return True
+        known = ", ".join(self.layers) or "none"
+        self.sink.error(
+            f"unknown layer {ref.name!r} in {context} (declared layers: {known})",
+            ref.at.line,
+            ref.at.col,
+        )
+        return False
+
+    def _groups(self) -> None:
+        seen: dict[str, int] = {}
+        for group in self.file.groups:
+            if group.name in seen:
+                self.sink.error(
+                    f"group {group.name!r} is already declared at line {seen[group.name]}",
+                    group.at.line,
+                    group.at.col,
+                )
+                continue
+            seen[group.name] = group.at.line
+            members: set[str] = set()
+            for ref in group.members:
+                if not self._known(ref, f"group {group.name!r}"):
+                    continue
+                if ref.name in members:
+                    self.sink.error(
+                        f"layer {ref.name!r} is listed twice in group {group.name!r}",
+                        ref.at.line,
+                        ref.at.col,
+                    )
+                    continue
+                other = self.group_of.get(ref.name)
+                if other is not None:
+                    self.sink.error(
+                        f"layer {ref.name!r} is already in group {other!r}; "
+                        "a layer belongs to at most one group",
+                        ref.at.line,
+                        ref.at.col,
+                    )
+                    continue
+                members.add(ref.name)
+                self.group_of[ref.name] = group.name
+            for a, b in combinations(sorted(members), 2):
+                self.excluded.add(frozenset((a, b)))
+
+    def _relations(self) -> None:
+        for layer in self.layers.values():
+            for relation in ("excludes", "requires", "after"):
+                refs: list[Ref] = getattr(layer, relation)
+                for ref in refs:
+                    if not self._known(ref, f"'{relation}' of layer {layer.name!r}"):
+                        continue
+                    if ref.name == layer.name:
+                        self.sink.error(
+                            f"layer {layer.name!r} names itself in '{relation}'",
+                            ref.at.line,
+                            ref.at.col,
+                        )
+                    elif relation == "excludes":
+                        self.excluded.add(frozenset((layer.name, ref.name)))
+                    elif relation == "requires" and ref.name in {r.name for r in layer.excludes}:
+                        self.sink.error(
+                            f"layer {layer.name!r} both requires and excludes {ref.name!r}",
+                            ref.at.line,
+                            ref.at.col,
+                        )
+
+    def _refs(self, layer: str, relation: str) -> list[str]:
+        decl = self.layers[layer]
+        names = [r.name for r in getattr(decl, relation)]
+        return [n for n in names if n in self.layers and n != layer]
+
+    def _closure(self, layer: str, relation: str) -> set[str]:
+        found: set[str] = set()
+        pending = self._refs(layer, relation)
+        while pending:
+            name = pending.pop()
+            if name not in found:
+                found.add(name)
+                pending.extend(self._refs(name, relation))
+        return found
+
+    # -- functions ----------------------------------------------------------------------
+
+    def _functions(self) -> None:
+        names, star = header_names(self.file.header_node)
+        first_impl: dict[str, Function] = {}
+        for block_name, functions in self._function_blocks():
+            seen: dict[str, Function] = {}
+            for function in functions:
+                earlier = seen.get(function.key)
+                if earlier is not None:
+                    self.sink.error(
+                        f"{function.key} is already defined in {block_name} "
+                        f"at line {earlier.at.line}",
+                        function.at.line,
+                        function.at.col,
+                    )
+                    continue
+                seen[function.key] = function
+                self._owner(function, names, star)
+                self._decorators(function)
+                first = first_impl.setdefault(function.key, function)
+                if first is not function:
+                    self._compatible(first, function)
+                if function.layer is None and calls_proceed(function):
+                    self.sink.warning(
+                        f"proceed() in the base implementation of {function.key} has no next "
+                        "implementation to run: it raises at run time",
+                        function.at.line,
+                        function.at.col,
+                    )
+
+    def _function_blocks(self) -> Iterable[tuple[str, list[Function]]]:
+        base = [f for block in self.file.bases for f in block.functions]
+        if base:
+            yield "the base block", base
+        seen: set[str] = set()
+        for layer in self.file.layers:
+            if layer.name in seen:
+                continue  # a duplicate layer is already an error
+            seen.add(layer.name)
+            yield f"layer {layer.name!r}", layer.functions
+
+    def _owner(self, function: Function, names: set[str], star: bool) -> None:
+        if function.owner is None:
+            return
+        if function.owner not in names and not star:
+            self.sink.error(
+                f"class {function.owner!r} is not defined in the header: import it or define "
+                "it above the first declaration",
+                function.at.line,
+                function.at.col,
+            )
+        args = function.node.args
+        if not (args.posonlyargs or args.args or args.vararg):
+            self.sink.error(
+                f"method {function.key} takes no parameters: it needs one for the instance (self)",
+                function.at.line,
+                function.at.col,
+            )
+
+    def _decorators(self, function: Function) -> None:
+        for decorator in function.node.decorator_list:
+            if isinstance(decorator, ast.Name) and decorator.id in DESCRIPTORS:
+                self.sink.error(
+                    f"@{decorator.id} makes {function.key} a {decorator.id} object; layered "
+                    "implementations must stay plain functions",
+                    function.at.line,
+                    function.at.col,
+                )
+
+    def _compatible(self, first: Function, other: Function) -> None:
+        where = f"layer {first.layer}" if first.layer else "the base block"
+        if first.is_async != other.is_async:
+            self.sink.error(
+                f"{signature_text(other)} is {'' if other.is_async else 'not '}async, but "
+                f"{first.key} in {where} (line {first.at.line}) is "
+                f"{'' if first.is_async else 'not '}async",
+                other.at.line,
+                other.at.col,
+            )
+        elif signature_shape(first) != signature_shape(other):
+            self.sink.error(
+                f"incompatible signature: {signature_text(other)} does not match "
+                f"{signature_text(first)} in {where} (line {first.at.line})",
+                other.at.line,
+                other.at.col,
+            )
+
+    def _names(self) -> None:
+        """Generated names must not collide with each other or with the header's names."""
+        names, _ = header_names(self.file.header_node)
+        taken: dict[str, str] = {}
+        for name in names:
+            taken[name] = "the header"
+        for name in RESERVED_NAMES:
+            taken.setdefault(name, "the compiled module")
+        for layer in self.file.layers:
+            if layer.name in taken and taken[layer.name] != "a layer":
+                self.sink.error(
+                    f"layer {layer.name!r} would shadow {layer.name!r} from {taken[layer.name]}",
+                    layer.at.line,
+                    layer.at.col,
+                )
+            taken.setdefault(layer.name, "a layer")
+        for function in self.file.all_functions():
+            generated = function.generated_name
+            owner = taken.get(generated)
+            is_base_of_free = function.layer is None and function.owner is None
+            if owner is not None and not (is_base_of_free and owner == "a free base"):
+                self.sink.error(
+                    f"the compiled name {generated!r} of {function.key} collides with "
+                    f"{generated!r} from {owner}; rename the method or the layer",
+                    function.at.line,
+                    function.at.col,
+                )
+            taken.setdefault(
+                generated, "a free base" if is_base_of_free else "a generated function"
+            )
+        for function in self.file.all_functions():
+            dispatch = (
+                function.name if function.owner is None else f"{function.owner}_{function.name}"
+            )
+            owner = taken.get(dispatch)
+            if owner in ("the header", "a layer", "a generated function", "the compiled module"):
+                self.sink.error(
+                    f"the dispatch function {dispatch!r} of {function.key} collides with "
+                    f"{dispatch!r} from {owner}",
+                    function.at.line,
+                    function.at.col,
+                )
+                taken[dispatch] = "reported"
+
+    # -- the layer interaction problem ---------------------------------------------------
+
+    def _conflict(self, names: set[str]) -> tuple[str, str] | None:
+        for a, b in combinations(sorted(names), 2):
+            if frozenset((a, b)) in self.excluded:
+                return a, b
+        return None
+
+    def _interaction(self) -> None:
+        requires = {name: self._closure(name, "requires") for name in self.layers}
+        after = {name: self._closure(name, "after") for name in self.layers}
+        self._cycles("requires", requires, error=False)
+        self._cycles("after", after, error=True)
+        possible: dict[str, bool] = {}
+        for name, layer in self.layers.items():
+            needed = {name, *requires[name]}
+            conflict = self._conflict(needed)
+            possible[name] = conflict is None
+            if conflict is not None:
+                a, b = conflict
+                via = f"it requires {', '.join(sorted(requires[name]))}; " if requires[name] else ""
+                self.sink.warning(
+                    f"layer {name!r} can never be activated: {via}{a!r} and {b!r} exclude "
+                    "each other",
+                    layer.at.line,
+                    layer.at.col,
+                )
+        by_method: dict[str, list[Function]] = {}
+        for layer in self.layers.values():
+            for function in layer.functions:
+                by_method.setdefault(function.key, []).append(function)
+        for key, functions in by_method.items():
+            for first, second in combinations(functions, 2):
+                a, b = first.layer or "", second.layer or ""
+                if a == b or not (possible.get(a) and possible.get(b)):
+                    continue
+                if self._conflict({a, b, *requires[a], *requires[b]}) is not None:
+                    continue
+                if b in after[a] or a in after[b]:
+                    continue
+                self.sink.warning(
+                    f"{key} is refined by layers {a!r} (line {first.at.line}) and {b!r}, which "
+                    "may be active together with no declared order, so the result depends on "
+                    f"which was activated last; declare 'layer {b} after {a}' (or the reverse), "
+                    "or make them exclusive ('excludes', 'group')",
+                    second.at.line,
+                    second.at.col,
+                )
+
+    def _cycles(self, relation: str, closure: dict[str, set[str]], *, error: bool) -> None:
+        reported: set[frozenset[str]] = set()
+        for name, layer in self.layers.items():
+            if name not in closure[name]:
+                continue
+            members = frozenset(n for n in closure[name] if name in closure[n])
+            if members in reported:
+                continue
+            reported.add(members)
+            refs: list[Ref] = getattr(layer, relation)
+            ref = next((r for r in refs if r.name in members), layer)
+            cycle = " -> ".join([*sorted(members), sorted(members)[0]])
+            message = f"'{relation}' cycle: {cycle}"
+            if error:
+                self.sink.error(message + "; an order cannot go both ways", ref.at.line, ref.at.col)
+            else:
+                self.sink.warning(
+                    message + "; these layers can only be activated together, in one switch",
+                    ref.at.line,
+                    ref.at.col,
+                )

@@ -1,0 +1,516 @@
+"""The structural parser of the layer language: a line-oriented, indentation-based reader.
+
+The file is split into the Python header and the declarations (`layer`, `base`, `group`),
+each declaration block into items (methods, hooks, a docstring), and every Python piece
+is handed to Python's own parser with its `.layers` positions kept, so a syntax error in
+a method body is reported at the right line and column of the layer file.
+"""
+
+from __future__ import annotations
+
+import ast
+import io
+import keyword
+import re
+import tokenize
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+
+from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
+from contextros.language.syntax import (
+    BaseBlock,
+    Function,
+    GroupDecl,
+    Hook,
+    LayerDecl,
+    LayerFile,
+    Position,
+    Ref,
+    SourceLine,
+)
+
+# Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
+_Where = Callable[[int, int], tuple[int, int]]
+
+RELATIONS = ("excludes", "requires", "after")
+HOOK_EVENTS = ("activate", "deactivate")
+
+_NAME = r"[^\W\d]\w*"
+# A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`).
+_DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
+_DEF = re.compile(
+    rf"(?P<indent>[ \t]*)(?:async[ \t]+)?def[ \t]+"
+    rf"(?P<target>(?:(?P<owner>{_NAME})[ \t]*\.[ \t]*)?(?P<name>{_NAME}))"
+)
+_HOOK = re.compile(r"(?P<indent>[ \t]*)on\b[ \t]*(?P<event>\w*)[ \t]*(?P<colon>:?)")
+_TOKEN = re.compile(rf"(?P<ws>[ \t]+)|(?P<comment>#.*)|(?P<name>{_NAME})|(?P<punct>[:,])")
+
+
+def parse(source: str, path: str = "<layers>") -> LayerFile:
+    """Parse a layer file; raise `LayerSyntaxError` carrying every syntax error found."""
+    layer_file, diagnostics = parse_with_diagnostics(source, path)
+    errors = [d for d in diagnostics if d.is_error]
+    if errors:
+        raise LayerSyntaxError(errors)
+    return layer_file
+
+
+def parse_with_diagnostics(
+    source: str, path: str = "<layers>"
+) -> tuple[LayerFile, list[Diagnostic]]:
+    """Parse as far as possible and return the tree with all diagnostics (never raises them)."""
+    return _Parser(source, path).run()
+
+
+@dataclass(frozen=True)
+class _Token:
+    kind: str
+    text: str
+    col: int  # 0-based
+
+
+def _indent_width(text: str) -> int:
+    return len(text) - len(text.lstrip(" \t"))
+
+
+def _is_blank(text: str) -> bool:
+    stripped = text.strip()
+    return not stripped or stripped.startswith("#")
+
+
+def _is_open(lines: list[str]) -> bool:
+    """True when the text ends inside a string or brackets, so its next line continues it."""
+    text = "\n".join(lines) + "\n"
+    try:
+        for _ in tokenize.generate_tokens(io.StringIO(text).readline):
+            pass
+    except tokenize.TokenError:
+        return True
+    except (SyntaxError, ValueError):
+        return False
+    return False
+
+
+def _lines_inside_strings(lines: list[str]) -> set[int]:
+    """0-based indices of lines that begin inside a multi-line string: never re-indent them."""
+    inside: set[int] = set()
+    text = "\n".join(lines) + "\n"
+    try:
+        for tok in tokenize.generate_tokens(io.StringIO(text).readline):
+            if tok.type in (tokenize.NEWLINE, tokenize.NL, tokenize.DEDENT, tokenize.INDENT):
+                continue
+            inside.update(range(tok.start[0], tok.end[0]))  # rows are 1-based: next rows
+    except (tokenize.TokenError, SyntaxError, ValueError):
+        pass
+    return inside
+
+
+class _Parser:
+    def __init__(self, source: str, path: str) -> None:
+        self.source = source
+        self.path = path
+        self.sink = DiagnosticSink(path, source)
+        self.lines = source.splitlines()
+
+    # -- file level ---------------------------------------------------------------------
+
+    def run(self) -> tuple[LayerFile, list[Diagnostic]]:
+        start = self._header_end()
+        header = "\n".join(self.lines[:start])
+        header_node = self._parse_header(header)
+        result = LayerFile(
+            path=self.path,
+            source=self.source,
+            header=header,
+            header_lines=start,
+            header_node=header_node,
+        )
+        i = start
+        while i < len(self.lines):
+            text = self.lines[i]
+            if _is_blank(text):
+                i += 1
+                continue
+            if text[0] in " \t":
+                self.sink.error(
+                    "unexpected indentation: expected a declaration ('layer', 'base' or "
+                    "'group') at the start of the line",
+                    i + 1,
+                    _indent_width(text) + 1,
+                )
+                i = self._block_end(i)
+                continue
+            end = self._block_end(i)
+            self._declaration(i, end, result)
+            i = end
+        return result, self.sink.items
+
+    def _header_end(self) -> int:
+        """Index of the first declaration line: the header is everything before it."""
+        for i, text in enumerate(self.lines):
+            match = _DECLARATION_START.match(text)
+            if match is None:
+                continue
+            word = match.group(2)
+            if word is not None and keyword.iskeyword(word):
+                continue  # `layer is None`, `group in groups`: Python, not a declaration
+            if not _is_open(self.lines[:i]):
+                return i
+        return len(self.lines)
+
+    def _parse_header(self, header: str) -> ast.Module | None:
+        node = self._python(header, lambda row, col: (row, col), 1)
+        return node if isinstance(node, ast.Module) else None
+
+    def _block_end(self, start: int) -> int:
+        """Index after the lines indented under line `start` (strings may reach column 0)."""
+        j = start + 1
+        while j < len(self.lines):
+            text = self.lines[j]
+            if not text.strip() or text[0] in " \t#":
+                j += 1
+                continue
+            if _is_open(self.lines[start + 1 : j]):
+                j += 1
+                continue
+            break
+        # Trailing blank and column-0 comment lines belong to no block.
+        while j > start + 1 and (not self.lines[j - 1].strip() or self.lines[j - 1][0] == "#"):
+            j -= 1
+        return j
+
+    # -- declaration lines --------------------------------------------------------------
+
+    def _tokens(self, row: int) -> list[_Token] | None:
+        text = self.lines[row]
+        tokens: list[_Token] = []
+        pos = 0
+        while pos < len(text):
+            match = _TOKEN.match(text, pos)
+            if match is None:
+                self.sink.error(f"unexpected character {text[pos]!r}", row + 1, pos + 1)
+                return None
+            kind = match.lastgroup or ""
+            if kind not in ("ws", "comment"):
+                tokens.append(_Token(kind, match.group(), pos))
+            pos = match.end()
+        return tokens
+
+    def _declaration(self, start: int, end: int, result: LayerFile) -> None:
+        tokens = self._tokens(start)
+        if tokens is None:
+            return
+        first = tokens[0] if tokens else None
+        if first is not None and first.text == "layer":
+            layer = self._layer_line(start, tokens)
+            if layer is not None:
+                result.layers.append(layer)
+                self._block(start, end, layer, None)
+            return
+        if first is not None and first.text == "base":
+            if len(tokens) < 2 or tokens[1].text != ":" or len(tokens) > 2:
+                col = tokens[1].col if len(tokens) > 1 else len(self.lines[start].rstrip())
+                self.sink.error("expected 'base:' on a line of its own", start + 1, col + 1)
+                return
+            block = BaseBlock(Position(start + 1, 1))
+            result.bases.append(block)
+            self._block(start, end, None, block)
+            return
+        if first is not None and first.text == "group":
+            group = self._group_line(start, tokens)
+            if group is not None:
+                result.groups.append(group)
+            if end > start + 1:
+                row = next(r for r in range(start + 1, end) if not _is_blank(self.lines[r]))
+                self.sink.error(
+                    "unexpected indentation: a group is declared on one line",
+                    row + 1,
+                    _indent_width(self.lines[row]) + 1,
+                )
+            return
+        found = first.text if first is not None else self.lines[start].strip()
+        self.sink.error(
+            f"expected a declaration ('layer', 'base' or 'group'), found {found!r}; "
+            "Python code belongs in the header, above the first declaration",
+            start + 1,
+            1,
+        )
+
+    def _expect_name(self, row: int, tokens: list[_Token], i: int, what: str) -> Ref | None:
+        if i < len(tokens) and tokens[i].kind == "name" and not keyword.iskeyword(tokens[i].text):
+            return Ref(tokens[i].text, Position(row + 1, tokens[i].col + 1))
+        col = tokens[i].col if i < len(tokens) else len(self.lines[row].split("#")[0].rstrip())
+        found = f", found {tokens[i].text!r}" if i < len(tokens) else ""
+        self.sink.error(f"expected {what}{found}", row + 1, col + 1)
+        return None
+
+    def _name_list(
+        self, row: int, tokens: list[_Token], i: int, what: str
+    ) -> tuple[list[Ref], int]:
+        names: list[Ref] = []
+        while True:
+            ref = self._expect_name(row, tokens, i, what)
+            if ref is None:
+                return names, -1
+            names.append(ref)
+            i += 1
+            if i < len(tokens) and tokens[i].text == ",":
+                i += 1
+                continue
+            return names, i
+
+    def _layer_line(self, row: int, tokens: list[_Token]) -> LayerDecl | None:
+        name = self._expect_name(row, tokens, 1, "a layer name after 'layer'")
+        if name is None:
+            return None
+        layer = LayerDecl(name.name, name.at)
+        i = 2
+        while i < len(tokens) and tokens[i].text in RELATIONS:
+            relation = tokens[i].text
+            refs, i = self._name_list(row, tokens, i + 1, f"a layer name after {relation!r}")
+            if i < 0:
+                return None
+            getattr(layer, relation).extend(refs)
+        end_col = len(self.lines[row].split("#")[0].rstrip())
+        if i >= len(tokens):
+            self.sink.error(
+                "expected ':' at the end of the layer declaration", row + 1, end_col + 1
+            )
+            return None
+        if tokens[i].text != ":":
+            self.sink.error(
+                f"expected 'excludes', 'requires', 'after' or ':', found {tokens[i].text!r}",
+                row + 1,
+                tokens[i].col + 1,
+            )
+            return None
+        if i + 1 < len(tokens):
+            self.sink.error(
+                "a layer's methods start on the next line, indented",
+                row + 1,
+                tokens[i + 1].col + 1,
+            )
+            return None
+        return layer
+
+    def _group_line(self, row: int, tokens: list[_Token]) -> GroupDecl | None:
+        name = self._expect_name(row, tokens, 1, "a group name after 'group'")
+        if name is None:
+            return None
+        if len(tokens) < 3 or tokens[2].text != ":":
+            col = tokens[2].col if len(tokens) > 2 else len(self.lines[row].split("#")[0].rstrip())
+            self.sink.error("expected ':' after the group name", row + 1, col + 1)
+            return None
+        members, i = self._name_list(row, tokens, 3, "a layer name in the group")
+        if i < 0:
+            return None
+        if i < len(tokens):
+            self.sink.error(
+                f"expected ',' between group members, found {tokens[i].text!r}",
+                row + 1,
+                tokens[i].col + 1,
+            )
+            return None
+        return GroupDecl(name.name, name.at, members)
+
+    # -- blocks and their items ---------------------------------------------------------
+
+    def _items(self, start: int, end: int) -> Iterator[tuple[int, int]]:
+        """Split the block under line `start` into items: (first row, end row)."""
+        rows = [r for r in range(start + 1, end) if not _is_blank(self.lines[r])]
+        if not rows:
+            return
+        indent = _indent_width(self.lines[rows[0]])
+        item_start = rows[0]
+        decorators_only = self.lines[rows[0]].lstrip().startswith("@")
+        for row in rows[1:]:
+            width = _indent_width(self.lines[row])
+            if width > indent or _is_open(self.lines[item_start:row]):
+                decorators_only = False
+                continue
+            if decorators_only:  # `@decorator` lines belong to the `def` below them
+                decorators_only = self.lines[row].lstrip().startswith("@")
+                continue
+            if width < indent:
+                self.sink.error(
+                    "unindent does not match the indentation of the block's other items",
+                    row + 1,
+                    width + 1,
+                )
+            yield item_start, row
+            item_start = row
+            decorators_only = self.lines[row].lstrip().startswith("@")
+        yield item_start, end
+
+    def _block(self, start: int, end: int, layer: LayerDecl | None, base: BaseBlock | None) -> None:
+        owner = f"layer {layer.name}" if layer is not None else "the base block"
+        first_item = True
+        found_any = False
+        for item_start, item_end in self._items(start, end):
+            found_any = True
+            stripped = self.lines[item_start].lstrip()
+            col = _indent_width(self.lines[item_start]) + 1
+            if stripped.startswith(("@", "def", "async")):
+                function = self._function(item_start, item_end, layer)
+                if function is not None:
+                    (layer.functions if layer is not None else base.functions).append(  # type: ignore[union-attr]
+                        function
+                    )
+            elif re.match(r"on\b", stripped):
+                if layer is None:
+                    self.sink.error(
+                        "activation hooks belong to a layer, not to the base block",
+                        item_start + 1,
+                        col,
+                    )
+                else:
+                    hook = self._hook(item_start, item_end, layer)
+                    if hook is not None:
+                        layer.hooks.append(hook)
+            elif first_item and re.match(r"[rRuUbBfF]{0,2}['\"]", stripped):
+                description = self._docstring(item_start, item_end)
+                if description is not None and layer is not None:
+                    layer.description = description
+            else:
+                self.sink.error(
+                    f"expected a method ('def name(...):' or 'def Class.name(...):')"
+                    f"{', a hook (on activate:)' if layer is not None else ''} in {owner}",
+                    item_start + 1,
+                    col,
+                )
+            first_item = False
+        if not found_any:
+            text = self.lines[start].split("#")[0].rstrip()
+            self.sink.error(
+                f"{owner} is empty: expected indented methods below it", start + 1, len(text) + 1
+            )
+
+    def _dedent(self, first: int, end: int) -> list[SourceLine]:
+        rows = list(range(first, end))
+        while rows and not self.lines[rows[-1]].strip():
+            rows.pop()
+        indent = _indent_width(self.lines[first])
+        raw = [self.lines[r] for r in rows]
+        inside = _lines_inside_strings(raw)
+        result: list[SourceLine] = []
+        for k, (row, text) in enumerate(zip(rows, raw, strict=True)):
+            cut = 0 if k in inside else min(indent, _indent_width(text))
+            result.append(SourceLine(text[cut:], row + 1, cut))
+        return result
+
+    def _rename(self, line: SourceLine, start: int, end: int, new: str) -> SourceLine:
+        """Replace text[start:end] of a dedented line by `new`, keeping columns mappable."""
+        text = line.text[:start] + new + line.text[end:]
+        delta_after = (end - start) - len(new) + line.delta
+        return SourceLine(text, line.line, line.delta, start + len(new), delta_after)
+
+    def _function(self, first: int, end: int, layer: LayerDecl | None) -> Function | None:
+        lines = self._dedent(first, end)
+        def_index = next(
+            (k for k, ln in enumerate(lines) if not ln.text.lstrip().startswith(("@", "#"))),
+            0,
+        )
+        match = _DEF.match(lines[def_index].text)
+        owner = name = None
+        at = Position(lines[def_index].line, lines[0].delta + 1)
+        generated = ""
+        if match is not None:
+            owner, name = match.group("owner"), match.group("name")
+            at = Position(lines[def_index].line, lines[def_index].delta + match.start("target") + 1)
+            stem = f"{owner}_{name}" if owner else name
+            generated = f"{stem}_{layer.name}" if layer is not None else stem
+            lines[def_index] = self._rename(
+                lines[def_index], match.start("target"), match.end("target"), generated
+            )
+        node = self._python_lines(lines)
+        if node is None or match is None or name is None:
+            if node is not None:  # Python accepted it, yet it is not `def name(...)`
+                self.sink.error("expected a method definition", at.line, at.col)
+            return None
+        if len(node.body) != 1 or not isinstance(
+            node.body[0], (ast.FunctionDef, ast.AsyncFunctionDef)
+        ):
+            self.sink.error("expected a single method definition", at.line, at.col)
+            return None
+        return Function(
+            name=name,
+            owner=owner,
+            layer=layer.name if layer is not None else None,
+            at=at,
+            node=node.body[0],
+            lines=lines,
+            generated_name=generated,
+        )
+
+    def _hook(self, first: int, end: int, layer: LayerDecl) -> Hook | None:
+        lines = self._dedent(first, end)
+        match = _HOOK.match(lines[0].text)
+        col = lines[0].delta + 1
+        if match is None or match.group("event") not in HOOK_EVENTS:
+            self.sink.error("expected 'on activate:' or 'on deactivate:'", first + 1, col)
+            return None
+        if not match.group("colon"):
+            self.sink.error(
+                f"expected ':' after 'on {match.group('event')}'",
+                first + 1,
+                lines[0].delta + match.end() + 1,
+            )
+            return None
+        event = match.group("event")
+        generated = f"on_{event}_{layer.name}"
+        lines[0] = self._rename(lines[0], 0, match.end(), f"def {generated}():")
+        node = self._python_lines(lines)
+        if node is None:
+            return None
+        return Hook(event, layer.name, Position(first + 1, col), lines, generated)
+
+    def _docstring(self, first: int, end: int) -> str | None:
+        lines = self._dedent(first, end)
+        node = self._python_lines(lines)
+        if node is None:
+            return None
+        body = node.body
+        if (
+            len(body) != 1
+            or not isinstance(body[0], ast.Expr)
+            or not isinstance(body[0].value, ast.Constant)
+            or not isinstance(body[0].value.value, str)
+        ):
+            self.sink.error(
+                "expected a docstring, a method or a hook", first + 1, lines[0].delta + 1
+            )
+            return None
+        return body[0].value.value
+
+    # -- Python pieces --------------------------------------------------------------------
+
+    def _python_lines(self, lines: list[SourceLine]) -> ast.Module | None:
+        def where(row: int, col: int) -> tuple[int, int]:
+            line = lines[min(max(row, 1), len(lines)) - 1]
+            return line.line, line.column(col)
+
+        return self._python("\n".join(ln.text for ln in lines) + "\n", where, lines[0].line)
+
+    def _python(self, text: str, where: _Where, fallback_line: int) -> ast.Module | None:
+        """Python's own parser on a piece of the file; its findings mapped back to the file.
+
+        The piece is parsed under a name that is not a file: given a real path, CPython
+        re-reads the error's line from disk and computes the column against the wrong text.
+        """
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                node = ast.parse(text, filename="<layer piece>")  # not the real file: see below
+            except SyntaxError as error:
+                row, col = where(error.lineno or fallback_line, max((error.offset or 1) - 1, 0))
+                self.sink.error(f"Python syntax error: {error.msg}", row, col + 1)
+                return None
+            except (ValueError, RecursionError, MemoryError) as error:
+                self.sink.error(f"Python cannot parse this: {error}", fallback_line, 1)
+                return None
+        for warning in caught:
+            if issubclass(warning.category, SyntaxWarning):
+                row, col = where(warning.lineno or fallback_line, 0)
+                self.sink.warning(f"Python: {warning.message}", row, col + 1)
+        return node
