@@ -124,6 +124,7 @@ class _Checker:
         self.layers: dict[str, LayerDecl] = {}
         self.group_of: dict[str, str] = {}
         self.excluded: set[frozenset[str]] = set()
+        self.broken: set[str] = set()  # layers whose relations are already errors
 
     def run(self) -> list[Diagnostic]:
         self._declarations()
@@ -203,6 +204,7 @@ class _Checker:
                     if not self._known(ref, f"'{relation}' of layer {layer.name!r}"):
                         continue
                     if ref.name == layer.name:
+                        self.broken.add(layer.name)
                         self.sink.error(
                             f"layer {layer.name!r} names itself in '{relation}'",
                             ref.at.line,
@@ -211,6 +213,7 @@ class _Checker:
                     elif relation == "excludes":
                         self.excluded.add(frozenset((layer.name, ref.name)))
                     elif relation == "requires" and ref.name in {r.name for r in layer.excludes}:
+                        self.broken.add(layer.name)
                         self.sink.error(
                             f"layer {layer.name!r} both requires and excludes {ref.name!r}",
                             ref.at.line,
@@ -321,48 +324,46 @@ class _Checker:
             )
 
     def _names(self) -> None:
-        """Generated names must not collide with each other or with the header's names."""
-        names, _ = header_names(self.file.header_node)
-        taken: dict[str, str] = {}
-        for name in names:
-            taken[name] = "the header"
+        """Names the compiled module defines must not collide with each other or the header."""
+        header, _ = header_names(self.file.header_node)
+        taken = dict.fromkeys(header, "a name defined in the header")
         for name in RESERVED_NAMES:
-            taken.setdefault(name, "the compiled module")
-        for layer in self.file.layers:
-            if layer.name in taken and taken[layer.name] != "a layer":
+            taken.setdefault(name, "a name the compiled module imports")
+        for layer in self.layers.values():
+            if layer.name in taken:
                 self.sink.error(
-                    f"layer {layer.name!r} would shadow {layer.name!r} from {taken[layer.name]}",
+                    f"layer {layer.name!r} would shadow {layer.name!r}, {taken[layer.name]}",
                     layer.at.line,
                     layer.at.col,
                 )
-            taken.setdefault(layer.name, "a layer")
-        for function in self.file.all_functions():
-            generated = function.generated_name
-            owner = taken.get(generated)
-            is_base_of_free = function.layer is None and function.owner is None
-            if owner is not None and not (is_base_of_free and owner == "a free base"):
-                self.sink.error(
-                    f"the compiled name {generated!r} of {function.key} collides with "
-                    f"{generated!r} from {owner}; rename the method or the layer",
-                    function.at.line,
-                    function.at.col,
-                )
-            taken.setdefault(
-                generated, "a free base" if is_base_of_free else "a generated function"
-            )
-        for function in self.file.all_functions():
+            taken[layer.name] = f"layer {layer.name!r}"
+        seen: set[tuple[str | None, str]] = set()
+        for function in sorted(self.file.all_functions(), key=lambda f: (f.at.line, f.at.col)):
+            if (function.layer, function.key) in seen:
+                continue  # a duplicate definition, already reported
+            seen.add((function.layer, function.key))
+            key = function.key
             dispatch = (
                 function.name if function.owner is None else f"{function.owner}_{function.name}"
             )
-            owner = taken.get(dispatch)
-            if owner in ("the header", "a layer", "a generated function", "the compiled module"):
-                self.sink.error(
-                    f"the dispatch function {dispatch!r} of {function.key} collides with "
-                    f"{dispatch!r} from {owner}",
-                    function.at.line,
-                    function.at.col,
+            claims = [(dispatch, f"the dispatch function of {key}", "the dispatch function")]
+            if function.layer is not None:
+                claims.append(
+                    (
+                        function.generated_name,
+                        f"{key} in layer {function.layer}",
+                        "the compiled name",
+                    )
                 )
-                taken[dispatch] = "reported"
+            for name, claimant, what in claims:
+                owner = taken.setdefault(name, claimant)
+                if owner != claimant:
+                    self.sink.error(
+                        f"{what} {name!r} of {key} is already {owner}; rename the method or "
+                        "the layer",
+                        function.at.line,
+                        function.at.col,
+                    )
 
     # -- the layer interaction problem ---------------------------------------------------
 
@@ -382,7 +383,7 @@ class _Checker:
             needed = {name, *requires[name]}
             conflict = self._conflict(needed)
             possible[name] = conflict is None
-            if conflict is not None:
+            if conflict is not None and name not in self.broken:
                 a, b = conflict
                 via = f"it requires {', '.join(sorted(requires[name]))}; " if requires[name] else ""
                 self.sink.warning(

@@ -39,6 +39,9 @@ HOOK_EVENTS = ("activate", "deactivate")
 _NAME = r"[^\W\d]\w*"
 # A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`).
 _DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
+# Keywords that may follow a name in a Python expression statement.
+_OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if"})
+_DECLARATION_WORD = re.compile(r"(layer|base|group)\b")
 _DEF = re.compile(
     rf"(?P<indent>[ \t]*)(?:async[ \t]+)?def[ \t]+"
     rf"(?P<target>(?:(?P<owner>{_NAME})[ \t]*\.[ \t]*)?(?P<name>{_NAME}))"
@@ -152,8 +155,7 @@ class _Parser:
             match = _DECLARATION_START.match(text)
             if match is None:
                 continue
-            word = match.group(2)
-            if word is not None and keyword.iskeyword(word):
+            if match.group(2) in _OPERATOR_WORDS:
                 continue  # `layer is None`, `group in groups`: Python, not a declaration
             if not _is_open(self.lines[:i]):
                 return i
@@ -182,11 +184,17 @@ class _Parser:
 
     # -- declaration lines --------------------------------------------------------------
 
-    def _tokens(self, row: int) -> list[_Token] | None:
+    def _tokens(self, row: int, *, stop_at_colon: bool) -> list[_Token] | None:
+        """The words of a declaration line; with `stop_at_colon`, the rest is one token."""
         text = self.lines[row]
         tokens: list[_Token] = []
         pos = 0
         while pos < len(text):
+            if stop_at_colon and tokens and tokens[-1].text == ":":
+                rest = text[pos:].strip()
+                if rest and not rest.startswith("#"):
+                    tokens.append(_Token("rest", rest, len(text) - len(text[pos:].lstrip())))
+                break
             match = _TOKEN.match(text, pos)
             if match is None:
                 self.sink.error(f"unexpected character {text[pos]!r}", row + 1, pos + 1)
@@ -198,7 +206,17 @@ class _Parser:
         return tokens
 
     def _declaration(self, start: int, end: int, result: LayerFile) -> None:
-        tokens = self._tokens(start)
+        word = _DECLARATION_WORD.match(self.lines[start])
+        if word is None:
+            found = self.lines[start].split()[0]
+            self.sink.error(
+                f"expected a declaration ('layer', 'base' or 'group'), found {found!r}; "
+                "Python code belongs in the header, above the first declaration",
+                start + 1,
+                1,
+            )
+            return
+        tokens = self._tokens(start, stop_at_colon=word.group() != "group")
         if tokens is None:
             return
         first = tokens[0] if tokens else None
@@ -510,7 +528,7 @@ class _Parser:
                 self.sink.error(f"Python cannot parse this: {error}", fallback_line, 1)
                 return None
         for warning in caught:
-            if issubclass(warning.category, SyntaxWarning):
+            if issubclass(warning.category, (SyntaxWarning, DeprecationWarning)):
                 row, col = where(warning.lineno or fallback_line, 0)
                 self.sink.warning(f"Python: {warning.message}", row, col + 1)
         return node

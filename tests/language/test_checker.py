@@ -1,0 +1,397 @@
+"""The checker: each error and each layer-interaction warning, at its exact position."""
+
+from __future__ import annotations
+
+import textwrap
+
+import pytest
+
+from contextros.language import LayerSyntaxError, check_file, check_source
+from contextros.language.checker import checked
+from tests.language.conftest import FIXTURES
+
+Found = tuple[str, int, int, str]
+
+
+def diagnostics(text: str) -> list[Found]:
+    return [
+        (d.severity.value, d.line, d.col, d.message)
+        for d in check_source(textwrap.dedent(text), "t.layers")
+    ]
+
+
+def only(text: str) -> Found:
+    found = diagnostics(text)
+    assert len(found) == 1, found
+    return found[0]
+
+
+def test_the_fixtures() -> None:
+    assert [d.render() for d in check_file(FIXTURES / "cleaner.layers")] == []
+    (warning,) = check_file(FIXTURES / "paper_listing1.layers")
+    assert (warning.severity.value, warning.line, warning.col) == ("warning", 18, 9)
+
+
+def test_duplicate_layer() -> None:
+    assert only(
+        """\
+        layer A:
+            def f(): ...
+        layer A:
+            def g(): ...
+        """
+    ) == ("error", 3, 7, "layer 'A' is already declared at line 1")
+
+
+def test_method_defined_twice_in_one_layer() -> None:
+    assert only(
+        """\
+        layer A:
+            def f(): ...
+
+            def f(): ...
+        """
+    ) == ("error", 4, 9, "f is already defined in layer 'A' at line 2")
+
+
+def test_method_defined_twice_in_the_base() -> None:
+    assert only(
+        """\
+        class C: ...
+        base:
+            def C.f(self): ...
+            def C .f(self): ...
+        """
+    ) == ("error", 4, 9, "C.f is already defined in the base block at line 3")
+
+
+@pytest.mark.parametrize(
+    ("declaration", "col", "context"),
+    [
+        ("layer A excludes Nope:", 18, "'excludes' of layer 'A'"),
+        ("layer A requires Nope:", 18, "'requires' of layer 'A'"),
+        ("layer A after Nope:", 15, "'after' of layer 'A'"),
+    ],
+)
+def test_relation_naming_an_unknown_layer(declaration: str, col: int, context: str) -> None:
+    assert only(f"{declaration}\n    def f(): ...\n") == (
+        "error",
+        1,
+        col,
+        f"unknown layer 'Nope' in {context} (declared layers: A)",
+    )
+
+
+def test_group_naming_an_unknown_layer_or_a_layer_twice() -> None:
+    assert diagnostics(
+        """\
+        group g: A, Nope, A
+        group h: A
+        group g: A
+        layer A:
+            def f(): ...
+        """
+    ) == [
+        ("error", 1, 13, "unknown layer 'Nope' in group 'g' (declared layers: A)"),
+        ("error", 1, 19, "layer 'A' is listed twice in group 'g'"),
+        ("error", 2, 10, "layer 'A' is already in group 'g'; a layer belongs to at most one group"),
+        ("error", 3, 7, "group 'g' is already declared at line 1"),
+    ]
+
+
+def test_a_layer_relating_to_itself_or_requiring_what_it_excludes() -> None:
+    assert diagnostics(
+        """\
+        layer B:
+            def g(): ...
+        layer A excludes A, B requires B:
+            def f(): ...
+        """
+    ) == [
+        ("error", 3, 18, "layer 'A' names itself in 'excludes'"),
+        ("error", 3, 32, "layer 'A' both requires and excludes 'B'"),
+    ]
+
+
+def test_incompatible_signatures_in_different_layers() -> None:
+    assert only(
+        """\
+        layer A:
+            def f(x, y=1): ...
+        layer B excludes A:
+            def f(x, y): ...
+        """
+    ) == (
+        "error",
+        4,
+        9,
+        "incompatible signature: f(x, y) does not match f(x, y=1) in layer A (line 2)",
+    )
+
+
+def test_incompatible_signature_against_the_base() -> None:
+    found = only(
+        """\
+        base:
+            def f(x, *, scale=1.0): ...
+        layer A:
+            def f(x, scale=1.0): ...
+        """
+    )
+    assert found[:3] == ("error", 4, 9)
+    assert "in the base block (line 2)" in found[3]
+
+
+def test_async_and_plain_implementations_do_not_mix() -> None:
+    assert only(
+        """\
+        layer A:
+            async def f(): ...
+        layer B excludes A:
+            def f(): ...
+        """
+    ) == ("error", 4, 9, "f() is not async, but f in layer A (line 2) is async")
+
+
+def test_annotations_and_default_values_may_differ() -> None:
+    assert diagnostics(
+        """\
+        layer A:
+            def f(x: int, y: int = 1) -> int: ...
+        layer B excludes A:
+            def f(x, y=2): ...
+        """
+    ) == []
+
+
+def test_methods_of_classes_the_header_does_not_define() -> None:
+    assert only("layer A:\n    def Robot.f(self): ...\n") == (
+        "error",
+        2,
+        9,
+        "class 'Robot' is not defined in the header: import it or define it above the first "
+        "declaration",
+    )
+    assert diagnostics("from robots import Robot\nlayer A:\n    def Robot.f(self): ...\n") == []
+    assert diagnostics("from robots import *\nlayer A:\n    def Robot.f(self): ...\n") == []
+
+
+def test_a_method_needs_a_parameter_for_the_instance() -> None:
+    assert only("class Robot: ...\nlayer A:\n    def Robot.f(): ...\n") == (
+        "error",
+        3,
+        9,
+        "method Robot.f takes no parameters: it needs one for the instance (self)",
+    )
+
+
+def test_descriptor_decorators_are_rejected() -> None:
+    assert only("layer A:\n    @staticmethod\n    def f(): ...\n") == (
+        "error",
+        3,
+        9,
+        "@staticmethod makes f a staticmethod object; layered implementations must stay plain "
+        "functions",
+    )
+
+
+def test_generated_names_must_not_collide() -> None:
+    assert diagnostics(
+        """\
+        def f_A(): ...
+        Night = 1
+        layer A:
+            def f(): ...
+        layer Night excludes A:
+            def f(): ...
+        """
+    ) == [
+        (
+            "error",
+            4,
+            9,
+            "the compiled name 'f_A' of f is already a name defined in the header; rename the "
+            "method or the layer",
+        ),
+        ("error", 5, 7, "layer 'Night' would shadow 'Night', a name defined in the header"),
+    ]
+
+
+def test_generated_names_of_two_methods_colliding() -> None:
+    # f in layer A_B and f_A in layer B both compile to f_A_B
+    found = diagnostics("layer A_B:\n    def f(): ...\nlayer B:\n    def f_A(): ...\n")
+    assert found == [
+        (
+            "error",
+            4,
+            9,
+            "the compiled name 'f_A_B' of f_A is already f in layer A_B; rename the method or "
+            "the layer",
+        )
+    ]
+
+
+def test_dispatch_name_colliding_with_the_header() -> None:
+    assert only("def f(): ...\nlayer A:\n    def f(): ...\n") == (
+        "error",
+        3,
+        9,
+        "the dispatch function 'f' of f is already a name defined in the header; rename the "
+        "method or the layer",
+    )
+
+
+def test_proceed_in_a_base_implementation() -> None:
+    assert only("base:\n    def f():\n        return proceed()\n") == (
+        "warning",
+        2,
+        9,
+        "proceed() in the base implementation of f has no next implementation to run: it "
+        "raises at run time",
+    )
+
+
+# -- the layer interaction problem -------------------------------------------------------
+
+
+def test_layers_that_may_be_active_together_with_no_order() -> None:
+    assert only(
+        """\
+        layer A:
+            def f(): ...
+        layer B:
+            def f(): ...
+        """
+    ) == (
+        "warning",
+        4,
+        9,
+        "f is refined by layers 'A' (line 2) and 'B', which may be active together with no "
+        "declared order, so the result depends on which was activated last; declare "
+        "'layer B after A' (or the reverse), or make them exclusive ('excludes', 'group')",
+    )
+
+
+@pytest.mark.parametrize(
+    "relation",
+    [
+        "group g: A, B\n",
+        "layer B excludes A:\n    def g(): ...\n",
+        "layer B after A:\n    def g(): ...\n",
+    ],
+)
+def test_declared_relations_silence_the_interaction_warning(relation: str) -> None:
+    name_b = "layer B:" if relation.startswith("group") else ""
+    text = f"layer A:\n    def f(): ...\n{relation}"
+    if name_b:
+        text += "layer B:\n    def f(): ...\n"
+    else:
+        text += "    def f(): ...\n"
+    assert diagnostics(text) == []
+
+
+def test_order_is_transitive_and_requires_closure_counts() -> None:
+    assert diagnostics(
+        """\
+        group where: Indoor, Outdoor
+        layer Indoor:
+            def f(): ...
+        layer Outdoor:
+            def f(): ...
+        layer Mid after Indoor:
+            def g(): ...
+        layer Top after Mid:
+            def f(): ...
+        layer Lamp requires Outdoor:
+            def h(): ...
+        layer Dim requires Indoor:
+            def h(): ...
+        """
+    ) == [
+        (
+            "warning",
+            9,
+            9,
+            "f is refined by layers 'Outdoor' (line 5) and 'Top', which may be active together "
+            "with no declared order, so the result depends on which was activated last; "
+            "declare 'layer Top after Outdoor' (or the reverse), or make them exclusive "
+            "('excludes', 'group')",
+        ),
+    ]
+
+
+def test_requires_cycle() -> None:
+    assert diagnostics(
+        """\
+        layer A requires B:
+            def f(): ...
+        layer B requires C:
+            def g(): ...
+        layer C requires A:
+            def h(): ...
+        """
+    ) == [
+        (
+            "warning",
+            1,
+            18,
+            "'requires' cycle: A -> B -> C -> A; these layers can only be activated together, "
+            "in one switch",
+        )
+    ]
+
+
+def test_after_cycle_is_an_error() -> None:
+    assert only(
+        """\
+        layer A after B:
+            def f(): ...
+        layer B after A:
+            def f(): ...
+        """
+    ) == ("error", 1, 15, "'after' cycle: A -> B -> A; an order cannot go both ways")
+
+
+def test_layer_that_can_never_be_activated() -> None:
+    assert diagnostics(
+        """\
+        group where: Indoor, Outdoor
+        layer Indoor:
+            def f(): ...
+        layer Outdoor:
+            def g(): ...
+        layer Confused requires Indoor, Outdoor:
+            def h(): ...
+        layer Worse requires Confused:
+            def k(): ...
+        """
+    ) == [
+        (
+            "warning",
+            6,
+            7,
+            "layer 'Confused' can never be activated: it requires Indoor, Outdoor; 'Indoor' and "
+            "'Outdoor' exclude each other",
+        ),
+        (
+            "warning",
+            8,
+            7,
+            "layer 'Worse' can never be activated: it requires Confused, Indoor, Outdoor; "
+            "'Indoor' and 'Outdoor' exclude each other",
+        ),
+    ]
+
+
+def test_checked_raises_on_errors_and_returns_warnings() -> None:
+    _, warnings = checked("layer A:\n    def f(): ...\nlayer B:\n    def f(): ...\n")
+    assert [w.line for w in warnings] == [4]
+    with pytest.raises(LayerSyntaxError) as caught:
+        checked("layer A after Z:\n    def f(): ...\n", "z.layers")
+    assert (caught.value.line, caught.value.col) == (1, 15)
+
+
+def test_an_unreadable_file_is_an_error_not_a_crash(tmp_path: object) -> None:
+    (found,) = check_file("/nonexistent/x.layers")
+    assert (found.is_error, found.line, found.col) == (True, 1, 1)
+    assert "cannot read the layer file" in found.message
