@@ -249,3 +249,13 @@ def test_nested_critical_sections_release_at_the_outermost_end() -> None:
             pending = activate(Night)
         assert not pending.done
     assert pending.applied
+
+
+def test_decisive_switch_inside_an_open_scope_shows_through_at_once() -> None:
+    with activated(Night):
+        assert mode() == "night/base"
+        activate(Outdoor)
+        assert mode() == "night/outdoor"
+        activate(Indoor)
+        assert mode() == "night/indoor"
+    assert mode() == "indoor"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Callable
+from contextvars import ContextVar
 from types import FunctionType
 from typing import Any, TypeVar, overload
 
@@ -42,8 +43,24 @@ class LayeredFunction:
         self._chains: dict[tuple[str, ...], Callable[..., Any]] = {}
         self.stable = copy_function(stub)
         self._freevars = stub.__code__.co_freevars
-        self._dispatch_key = fresh_key("dispatch")
-        self._trampoline = trampoline_code(self._dispatch_key, self._freevars, self.qualname)
+        self._head_key = fresh_key("head")
+        self._scope_key = fresh_key("scope")
+        self._self_key = fresh_key("layered")
+        call_head = f"return {self._head_key}(*args, **kwargs)"
+        self._direct_code = trampoline_code([call_head], self._freevars, self.qualname)
+        self._scoped_code = trampoline_code(
+            [
+                f"__contextros_scope = {self._scope_key}.get()",
+                "if __contextros_scope is None:",
+                f"    {call_head}",
+                f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
+                "if __contextros_head is None:",
+                f"    __contextros_head = __contextros_scope.head({self._self_key})",
+                "return __contextros_head(*args, **kwargs)",
+            ],
+            self._freevars,
+            self.qualname,
+        )
         self.stable.__wrapped__ = stub  # type: ignore[attr-defined]
         self.stable.partial = self.partial  # type: ignore[attr-defined]
         self.stable.__contextros__ = self  # type: ignore[attr-defined]
@@ -109,12 +126,20 @@ class LayeredFunction:
         return following
 
     def install(self, head: Callable[..., Any]) -> None:
-        """Make calls of `stable` run `head`: by taking its code, else via the trampoline."""
+        """Make calls of `stable` run `head`: by taking its code, else via a trampoline."""
         if can_take_code_of(self.stable, head):
             self.stable.__code__ = head.__code__  # type: ignore[attr-defined]
         else:
-            self.stable.__globals__[self._dispatch_key] = head
-            self.stable.__code__ = self._trampoline
+            self.stable.__globals__[self._head_key] = head
+            self.stable.__code__ = self._direct_code
+
+    def install_scoped(self, scope: ContextVar[Any]) -> None:
+        """Make calls of `stable` read the caller's scope first (while scopes are alive)."""
+        namespace = self.stable.__globals__
+        namespace[self._head_key] = self.global_head
+        namespace[self._scope_key] = scope
+        namespace[self._self_key] = self
+        self.stable.__code__ = self._scoped_code
 
     def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname

@@ -206,8 +206,8 @@ def can_take_code_of(stable: FunctionType, head: object) -> bool:
     )
 
 
-def trampoline_code(key: str, freevars: tuple[str, ...], qualname: str) -> CodeType:
-    """Code for `def f(*args, **kwargs): return <key>(*args, **kwargs)` with `freevars`.
+def trampoline_code(body: list[str], freevars: tuple[str, ...], qualname: str) -> CodeType:
+    """Code for `def f(*args, **kwargs): <body>` whose free variables are `freevars`.
 
     The free variables only match the stable function's closure (its __code__ must keep
     their number); the body never reads them.
@@ -217,7 +217,8 @@ def trampoline_code(key: str, freevars: tuple[str, ...], qualname: str) -> CodeT
     lines += ["    def __contextros_dispatch(*args, **kwargs):"]
     if freevars:
         lines += [f"        {', '.join(freevars)}"]
-    lines += [f"        return {key}(*args, **kwargs)", "    return __contextros_dispatch"]
+    lines += [f"        {line}" for line in body]
+    lines += ["    return __contextros_dispatch"]
     module = compile("\n".join(lines), f"<contextros dispatch of {qualname}>", "exec")
     outer = next(c for c in module.co_consts if isinstance(c, CodeType))
     inner = next(c for c in outer.co_consts if isinstance(c, CodeType))

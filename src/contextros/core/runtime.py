@@ -83,22 +83,38 @@ class _Scope:
 
     Alive while any context (thread, task, copied context) can still see it; the
     runtime uses the live count to know whether calls must consult context variables.
+    It caches its configuration and the heads composed for it until the next decisive
+    switch.
     """
 
-    __slots__ = ("__weakref__", "_cached", "_runtime", "steps")
+    __slots__ = ("__weakref__", "_configuration", "_epoch", "_runtime", "heads", "steps")
 
     def __init__(self, runtime: Runtime, steps: tuple[tuple[bool, Layer], ...]) -> None:
         self._runtime = runtime
         self.steps = steps
-        self._cached: tuple[int, Configuration] = (-1, ())
+        self._epoch = -1
+        self._configuration: Configuration = ()
+        # Valid for `_epoch` only: a decisive switch replaces it (see configuration()).
+        self.heads: dict[LayeredFunction, Callable[..., Any]] = {}
 
     def configuration(self) -> Configuration:
-        epoch, cached = self._cached
-        runtime = self._runtime
-        if epoch != runtime.epoch:
-            cached = rules.replay(runtime.active, self.steps)
-            self._cached = (runtime.epoch, cached)
-        return cached
+        if self._epoch != self._runtime.epoch:
+            self._epoch = self._runtime.epoch
+            self._configuration = rules.replay(self._runtime.active, self.steps)
+            self.heads = {}
+        return self._configuration
+
+    def invalidate(self) -> None:
+        self._epoch = -1
+        self.heads = {}
+
+    def head(self, function: LayeredFunction) -> Callable[..., Any]:
+        if self._epoch != self._runtime.epoch:
+            self.configuration()
+        head = self.heads.get(function)
+        if head is None:
+            head = self.heads[function] = function.head_for(self._configuration)
+        return head
 
     def __del__(self) -> None:
         self._runtime._scope_released()
@@ -114,6 +130,7 @@ class Runtime:
         self._critical_depth = 0
         self._deferred: deque[tuple[Plan, SwitchResult]] = deque()
         self._live_scopes = 0
+        self._scopes: weakref.WeakSet[_Scope] = weakref.WeakSet()
         self.scope: ContextVar[_Scope | None] = ContextVar("contextros_scope", default=None)
 
     # -- layered functions ---------------------------------------------------------------
@@ -127,20 +144,9 @@ class Runtime:
         with self.lock:
             function.global_head = function.head_for(self.active)
             if self._live_scopes:
-                function.install(self._scoped_dispatcher(function))
+                function.install_scoped(self.scope)
             else:
                 function.install(function.global_head)
-
-    def _scoped_dispatcher(self, function: LayeredFunction) -> Callable[..., Any]:
-        scope_var = self.scope
-
-        def scoped(*args: Any, **kwargs: Any) -> Any:
-            scope = scope_var.get()
-            if scope is None:
-                return function.global_head(*args, **kwargs)
-            return function.head_for(scope.configuration())(*args, **kwargs)
-
-        return scoped
 
     def _reinstall_all(self) -> None:
         for function in list(self._functions):
@@ -177,8 +183,12 @@ class Runtime:
         self.epoch += 1
         for function, head in heads.items():
             function.global_head = head
-            if not self._live_scopes:
+            if self._live_scopes:
+                function.install_scoped(self.scope)
+            else:
                 function.install(head)
+        for scope in list(self._scopes):
+            scope.invalidate()
         failure: HookError | None = None
         for layer in arriving:
             try:
@@ -246,6 +256,7 @@ class Runtime:
             rules.validate(rules.replay(self.active, steps))
             self._live_scopes += 1  # _Scope.__del__ gives it back
             scope = _Scope(self, steps)
+            self._scopes.add(scope)
             if self._live_scopes == 1:
                 self._reinstall_all()
             return scope
