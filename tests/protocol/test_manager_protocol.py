@@ -162,7 +162,7 @@ def test_layer_known_only_from_a_dead_participant_is_unknown() -> None:
 @pytest.mark.parametrize(
     ("command", "culprit"),
     [
-        ({"activate": ("Indoor", "Outdoor")}, "group 'location'"),
+        ({"activate": ("Indoor", "Outdoor")}, "both in exclusive group 'location'"),
         ({"activate": ("Slow", "Fast")}, "Slow excludes Fast"),
         ({"activate": ("Gps",)}, "Gps requires Outdoor"),
         ({"activate": ("Night",), "deactivate": ("Night",)}, "both activated and deactivated"),
@@ -185,7 +185,15 @@ def test_switch_within_a_group_is_one_atomic_state() -> None:
     actions = system.command(2, activate=("Outdoor", "Gps"), deactivate=("Indoor",))
     (state,) = states(actions)
     assert state.active == ("Night", "Outdoor", "Gps")
-    assert replies(system.command(3, activate=("Indoor",)))[3].success is False
+    result = replies(system.command(3, activate=("Indoor",)))[3]
+    assert not result.success and "Gps requires Outdoor" in result.message
+
+
+def test_activating_a_group_member_drops_the_others_as_the_core_does() -> None:
+    system = System()
+    system.command(1, activate=("Outdoor", "Night"))
+    (state,) = states(system.command(2, activate=("Indoor",)))
+    assert state.active == ("Night", "Indoor")
 
 
 def test_composition_order_is_activation_order_and_reactivation_keeps_place() -> None:

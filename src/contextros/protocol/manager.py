@@ -266,6 +266,9 @@ class ManagerProtocol:
                 f"unknown layer {names}: no live participant implements it "
                 f"(known layers: {known}); nothing changed"
             )
+        rivals = _group_rivals(command.activate, declarations)
+        if rivals:
+            return f"relation violated: {rivals}; activate only one of them; nothing changed"
         before = set(relation_violations(self._state.active, declarations))
         introduced = [
             problem
@@ -277,11 +280,22 @@ class ManagerProtocol:
         return ""
 
     def _next_active(self, command: ActivationCommand) -> tuple[str, ...]:
-        # Already active layers keep their place; newly activated ones become outermost.
+        # As the core's `switch`: deactivate, then activate; an active layer keeps its place,
+        # a new one becomes outermost, and activating a group member drops the others.
+        declarations = self.declarations()
         off = set(command.deactivate)
-        kept = [name for name in self._state.active if name not in off]
-        added = [name for name in dict.fromkeys(command.activate) if name not in kept]
-        return tuple(kept + added)
+        layers = [name for name in self._state.active if name not in off]
+        for name in dict.fromkeys(command.activate):
+            groups = _groups_of(name, declarations)
+            if groups:
+                layers = [
+                    other
+                    for other in layers
+                    if other == name or not (_groups_of(other, declarations) & groups)
+                ]
+            if name not in layers:
+                layers.append(name)
+        return tuple(layers)
 
     def _publish(
         self, active: tuple[str, ...], requester: str, reason: str, now: float, above: int
@@ -360,3 +374,19 @@ class ManagerProtocol:
 
     def _result(self, success: bool, message: str) -> ActivationResult:
         return ActivationResult(success, message, self._state.epoch, self._state.active)
+
+
+def _groups_of(name: str, declarations: dict[str, LayerDeclaration]) -> frozenset[str]:
+    declaration = declarations.get(name)
+    return declaration.groups if declaration else frozenset()
+
+
+def _group_rivals(activate: tuple[str, ...], declarations: dict[str, LayerDeclaration]) -> str:
+    """Two layers of one exclusive group asked for in the same command."""
+    seen: dict[str, str] = {}
+    for name in dict.fromkeys(activate):
+        for group in sorted(_groups_of(name, declarations)):
+            other = seen.setdefault(group, name)
+            if other != name:
+                return f"{other} and {name} are both in exclusive group {group!r}"
+    return ""

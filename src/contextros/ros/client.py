@@ -1,0 +1,99 @@
+"""The activation client: what `contextros activate/status` and user programs call."""
+
+from __future__ import annotations
+
+import getpass
+import os
+from collections.abc import Iterable
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+from contextros_interfaces.srv import Activate, QueryRegistry
+from rclpy.node import Node
+
+from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
+from contextros.ros.messages import command_to_request, result_from_response
+from contextros.ros.topics import ACTIVATE_SERVICE, QUERY_SERVICE
+
+# Beyond the activation's own timeout: discovery of the reply and a slow manager.
+REPLY_MARGIN = 5.0
+
+
+def default_requester() -> str:
+    try:
+        user = getpass.getuser()
+    except (KeyError, OSError):
+        user = "unknown"
+    return f"{user}@pid{os.getpid()}"
+
+
+@dataclass(frozen=True)
+class RegistrySnapshot:
+    """The manager's registry as `QueryRegistry` returns it (the raw response)."""
+
+    response: Any
+
+
+class LayerClient:
+    """Sends activation commands to the Layer manager from an existing node."""
+
+    def __init__(self, node: Node, requester: str | None = None) -> None:
+        self.node = node
+        self.requester = requester or default_requester()
+        self._activate: Any = node.create_client(Activate, ACTIVATE_SERVICE)
+        self._query: Any = node.create_client(QueryRegistry, QUERY_SERVICE)
+
+    def wait_for_manager(self, timeout: float = 5.0) -> None:
+        if not self._activate.wait_for_service(timeout_sec=timeout):
+            domain = os.environ.get("ROS_DOMAIN_ID", "0")
+            raise ManagerError(
+                f"no Layer manager answers on {ACTIVATE_SERVICE} (ROS_DOMAIN_ID={domain}) "
+                f"after {timeout:g} s; start one with `contextros manager`"
+            )
+
+    def request(
+        self,
+        activate: Iterable[str] = (),
+        deactivate: Iterable[str] = (),
+        *,
+        synchronous: bool = False,
+        timeout: float = 0.0,
+        reason: str = "",
+    ) -> ActivationResult:
+        """Send one activation command and wait (spinning the node) for the manager's answer."""
+        request = command_to_request(
+            activate, deactivate, synchronous, timeout, self.requester, reason
+        )
+        reply_timeout = (timeout or 30.0) + REPLY_MARGIN
+        future = self._activate.call_async(request)
+        rclpy.spin_until_future_complete(self.node, future, timeout_sec=reply_timeout)
+        if not future.done():
+            self._activate.remove_pending_request(future)
+            raise ManagerError(f"the Layer manager did not answer within {reply_timeout:g} s")
+        return result_from_response(future.result())
+
+    def activate(
+        self, *layers: str, synchronous: bool = True, timeout: float = 0.0
+    ) -> ActivationResult:
+        """Activate `layers`; raise ActivationFailed with the manager's message on failure."""
+        return _checked(self.request(layers, synchronous=synchronous, timeout=timeout))
+
+    def deactivate(
+        self, *layers: str, synchronous: bool = True, timeout: float = 0.0
+    ) -> ActivationResult:
+        return _checked(self.request((), layers, synchronous=synchronous, timeout=timeout))
+
+    def query(self, timeout: float = 5.0) -> Any:
+        future = self._query.call_async(QueryRegistry.Request())
+        rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout)
+        if not future.done():
+            self._query.remove_pending_request(future)
+            raise ManagerError(f"the Layer manager did not answer a query within {timeout:g} s")
+        return future.result()
+
+
+def _checked(result: ActivationResult) -> ActivationResult:
+    if not result.success:
+        raise ActivationFailed(result.message, result.not_acknowledged)
+    return result

@@ -1,0 +1,179 @@
+"""Translation between the rosidl messages and the protocol's plain values."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from typing import Any
+
+from builtin_interfaces.msg import Time  # type: ignore[import-untyped]
+from contextros_interfaces.msg import LayerInfo, ParticipantInfo, ParticipantStatus
+from contextros_interfaces.msg import LayerState as LayerStateMsg
+from contextros_interfaces.srv import Activate, QueryRegistry
+
+from contextros.protocol import (
+    ActivationCommand,
+    ActivationResult,
+    LayerDeclaration,
+    LayerState,
+    ParticipantReport,
+    RegistryView,
+)
+
+
+def stamp_to_seconds(stamp: Any) -> float:
+    return float(stamp.sec) + float(stamp.nanosec) * 1e-9
+
+
+def seconds_to_stamp(seconds: float) -> Any:
+    sec = int(seconds)
+    return Time(sec=sec, nanosec=int((seconds - sec) * 1e9))
+
+
+def declaration_to_msg(declaration: LayerDeclaration) -> Any:
+    return LayerInfo(
+        name=declaration.name,
+        excludes=sorted(declaration.excludes),
+        requires=sorted(declaration.requires),
+        group=declaration.group,
+    )
+
+
+def declaration_from_msg(msg: Any) -> LayerDeclaration:
+    return LayerDeclaration(
+        name=msg.name,
+        excludes=frozenset(msg.excludes),
+        requires=frozenset(msg.requires),
+        group=msg.group,
+    )
+
+
+def state_to_msg(state: LayerState, wall_time: float) -> Any:
+    return LayerStateMsg(
+        epoch=state.epoch,
+        active_layers=list(state.active),
+        stamp=seconds_to_stamp(wall_time),
+        requester=state.requester,
+        reason=state.reason,
+        manager_id=state.manager_id,
+    )
+
+
+def state_from_msg(msg: Any) -> LayerState:
+    return LayerState(
+        epoch=msg.epoch,
+        active=tuple(msg.active_layers),
+        requester=msg.requester,
+        reason=msg.reason,
+        stamp=stamp_to_seconds(msg.stamp),
+        manager_id=msg.manager_id,
+    )
+
+
+def report_to_msg(report: ParticipantReport, wall_time: float) -> Any:
+    return ParticipantStatus(
+        node=report.node,
+        incarnation=report.incarnation,
+        layers=[declaration_to_msg(d) for d in report.layers],
+        applied_epoch=report.applied_epoch,
+        active_layers=list(report.active),
+        in_critical_section=report.in_critical_section,
+        pending_epoch=report.pending_epoch,
+        failed_epoch=report.failed_epoch,
+        error=report.error,
+        leaving=report.leaving,
+        stamp=seconds_to_stamp(wall_time),
+    )
+
+
+def report_from_msg(msg: Any) -> ParticipantReport:
+    return ParticipantReport(
+        node=msg.node,
+        incarnation=msg.incarnation,
+        layers=tuple(declaration_from_msg(d) for d in msg.layers),
+        applied_epoch=msg.applied_epoch,
+        active=tuple(msg.active_layers),
+        in_critical_section=msg.in_critical_section,
+        pending_epoch=msg.pending_epoch,
+        failed_epoch=msg.failed_epoch,
+        error=msg.error,
+        leaving=msg.leaving,
+    )
+
+
+def command_to_request(
+    activate: Iterable[str],
+    deactivate: Iterable[str],
+    synchronous: bool,
+    timeout: float,
+    requester: str,
+    reason: str,
+) -> Any:
+    return Activate.Request(
+        activate=list(activate),
+        deactivate=list(deactivate),
+        synchronous=synchronous,
+        timeout=float(timeout),
+        requester=requester,
+        reason=reason,
+    )
+
+
+def command_from_request(request_id: int, request: Any) -> ActivationCommand:
+    return ActivationCommand(
+        request_id=request_id,
+        activate=tuple(request.activate),
+        deactivate=tuple(request.deactivate),
+        synchronous=request.synchronous,
+        timeout=request.timeout,
+        requester=request.requester,
+        reason=request.reason,
+    )
+
+
+def fill_response(response: Any, result: ActivationResult) -> Any:
+    response.success = result.success
+    response.message = result.message
+    response.epoch = result.epoch
+    response.active_layers = list(result.active)
+    response.acknowledged = list(result.acknowledged)
+    response.not_acknowledged = list(result.not_acknowledged)
+    response.elapsed = result.elapsed
+    return response
+
+
+def result_from_response(response: Any) -> ActivationResult:
+    return ActivationResult(
+        success=response.success,
+        message=response.message,
+        epoch=response.epoch,
+        active=tuple(response.active_layers),
+        acknowledged=tuple(response.acknowledged),
+        not_acknowledged=tuple(response.not_acknowledged),
+        elapsed=response.elapsed,
+    )
+
+
+def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> Any:
+    response.epoch = view.state.epoch
+    response.active_layers = list(view.state.active)
+    response.requester = view.state.requester
+    response.reason = view.state.reason
+    response.layers = [declaration_to_msg(d) for d in view.layers]
+    response.implemented_by = [",".join(view.implemented_by.get(d.name, ())) for d in view.layers]
+    response.participants = [
+        ParticipantInfo(
+            node=p.node,
+            layers=list(p.layers),
+            applied_epoch=p.applied_epoch,
+            in_critical_section=p.in_critical_section,
+            silent_for=p.silent_for,
+            lagging=p.lagging,
+        )
+        for p in view.participants
+    ]
+    response.dropped = list(view.dropped)
+    response.manager_id = manager_id
+    return response
+
+
+QueryRequest = QueryRegistry.Request

@@ -1,0 +1,200 @@
+"""Context nodes: rclpy nodes whose layered methods follow the Layer manager.
+
+`ContextParticipant(node)` attaches the protocol to any existing node (injected, like
+py_trees_ros's `setup(node=...)`); `ContextNode` is a Node that does it for itself.
+A new state is applied inside the node's executor (the state subscription callback), with
+the core's `set_active`, so layered calls made from the node's callbacks see either the old
+configuration or the new one, and the acknowledgement is sent only once it really applied.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+import time
+import uuid
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from contextros_interfaces.msg import LayerState as LayerStateMsg
+from contextros_interfaces.msg import ParticipantStatus
+from rclpy.node import Node
+
+from contextros.core import Layer, SwitchResult, active_layers, layer_named, set_active
+from contextros.core import registry as layer_registry
+from contextros.errors import LayerError, UnknownLayerError
+from contextros.protocol import (
+    DEFAULT_HEARTBEAT_PERIOD,
+    ApplyState,
+    LayerDeclaration,
+    LayerState,
+    ParticipantAction,
+    ParticipantProtocol,
+    PublishStatus,
+)
+from contextros.ros.messages import report_to_msg, state_from_msg
+from contextros.ros.topics import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC
+
+StateListener = Callable[[LayerState], object]
+
+
+def declaration_of(layer: Layer) -> LayerDeclaration:
+    return LayerDeclaration(
+        name=layer.name,
+        excludes=frozenset(layer.excludes),
+        requires=frozenset(layer.requires),
+        group=layer.group or "",
+    )
+
+
+def _layer_for(name: str) -> Layer:
+    # A layer this node has no partials for is still part of the configuration (it keeps
+    # the composition order identical everywhere); a bare layer is transparent.
+    try:
+        return layer_named(name)
+    except UnknownLayerError:
+        return Layer(name)
+
+
+class ContextParticipant:
+    """The protocol's participant side, attached to an existing rclpy node.
+
+    `layers` are the layers this node implements (announced with their relations); by
+    default every layer defined in the process when the participant is created.
+    """
+
+    def __init__(
+        self,
+        node: Node,
+        layers: Iterable[Layer | str] | None = None,
+        *,
+        heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+    ) -> None:
+        self.node = node
+        names = layer_registry.names() if layers is None else layers
+        declarations = tuple(
+            declaration_of(layer if isinstance(layer, Layer) else layer_named(layer))
+            for layer in names
+        )
+        self.protocol = ParticipantProtocol(
+            node=node.get_fully_qualified_name(),
+            incarnation=f"{os.getpid()}-{uuid.uuid4().hex[:8]}",
+            layers=declarations,
+            heartbeat_period=heartbeat_period,
+        )
+        self.state: LayerState | None = None
+        self._listeners: list[StateListener] = []
+        # Deferred switches settle on whichever thread closes the critical section; they
+        # are handed back to the executor through this guard condition.
+        self._deferred: list[tuple[LayerState, SwitchResult]] = []
+        self._deferred_lock = threading.Lock()
+        self._settled = node.create_guard_condition(self._on_deferred_settled)
+        self._status_pub = node.create_publisher(ParticipantStatus, STATUS_TOPIC, STATUS_QOS)
+        self._state_sub = node.create_subscription(
+            LayerStateMsg, STATE_TOPIC, self._on_state, STATE_QOS
+        )
+        self._heartbeat = node.create_timer(heartbeat_period / 2, self._on_heartbeat)
+        self._run(self.protocol.announce(time.monotonic()))
+
+    @property
+    def applied_epoch(self) -> int:
+        return self.protocol.applied_epoch
+
+    def add_listener(self, listener: StateListener) -> None:
+        """Call `listener(state)` in the executor after each state this node applied."""
+        self._listeners.append(listener)
+
+    def leave(self) -> None:
+        """Tell the manager this node is going away (it is dropped at once, not after a timeout)."""
+        with contextlib.suppress(Exception):
+            self._run(self.protocol.leave(time.monotonic()))
+
+    def close(self) -> None:
+        self.leave()
+        self.node.destroy_timer(self._heartbeat)
+        self.node.destroy_subscription(self._state_sub)
+        self.node.destroy_publisher(self._status_pub)
+        self.node.destroy_guard_condition(self._settled)
+
+    # -- executor callbacks -----------------------------------------------------------------
+
+    def _on_state(self, msg: Any) -> None:
+        self._run(self.protocol.receive_state(state_from_msg(msg)))
+
+    def _on_heartbeat(self) -> None:
+        self._run(self.protocol.tick(time.monotonic()))
+
+    def _on_deferred_settled(self) -> None:
+        with self._deferred_lock:
+            settled = [(s, r) for s, r in self._deferred if r.done]
+            self._deferred = [(s, r) for s, r in self._deferred if not r.done]
+        for state, result in settled:
+            self._settle(state, result.applied, result.error)
+
+    # -- actions ----------------------------------------------------------------------------
+
+    def _run(self, actions: list[ParticipantAction]) -> None:
+        for action in actions:
+            if isinstance(action, ApplyState):
+                self._apply(action.state)
+            elif isinstance(action, PublishStatus):
+                self._status_pub.publish(report_to_msg(action.report, time.time()))
+
+    def _apply(self, state: LayerState) -> None:
+        try:
+            result = set_active([_layer_for(name) for name in state.active])
+        except LayerError as error:
+            self._settle(state, applied=False, error=error)
+            return
+        if result.deferred and not result.done:
+            with self._deferred_lock:
+                self._deferred.append((state, result))
+            self._run(self.protocol.deferred(state, time.monotonic()))
+            threading.Thread(target=self._wait_for, args=(result,), daemon=True).start()
+            return
+        self._settle(state, result.applied, result.error)
+
+    def _wait_for(self, result: SwitchResult) -> None:
+        result.wait()
+        self._settled.trigger()
+
+    def _settle(self, state: LayerState, applied: bool, error: LayerError | None) -> None:
+        now = time.monotonic()
+        # An on_activate hook that raised still leaves the new configuration installed.
+        installed = tuple(layer.name for layer in active_layers()) == state.active
+        if error is not None and installed:
+            self.node.get_logger().warning(f"epoch {state.epoch} applied, but {error}")
+        if applied or installed:
+            self.state = state
+            self._run(self.protocol.applied(state, now))
+            for listener in list(self._listeners):
+                try:
+                    listener(state)
+                except Exception as error:  # a listener must not stop the node
+                    self.node.get_logger().error(f"state listener {listener!r} failed: {error!r}")
+        else:
+            why = str(error) if error else "the switch was dropped"
+            self.node.get_logger().error(f"cannot apply epoch {state.epoch}: {why}")
+            self._run(self.protocol.failed(state, why, now))
+
+
+class ContextNode(Node):
+    """An rclpy Node that follows the Layer manager (see `ContextParticipant`)."""
+
+    def __init__(
+        self,
+        node_name: str,
+        *,
+        layers: Iterable[Layer | str] | None = None,
+        heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+        **node_options: Any,
+    ) -> None:
+        super().__init__(node_name, **node_options)
+        self.context_participant = ContextParticipant(
+            self, layers, heartbeat_period=heartbeat_period
+        )
+
+    def destroy_node(self) -> None:
+        self.context_participant.leave()
+        super().destroy_node()

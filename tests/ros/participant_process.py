@@ -1,0 +1,90 @@
+"""A context node in its own process, for the ROS tests.
+
+It implements a few layers with relations and a layered method, and prints one JSON line
+per event on stdout (`ready`, `applied` with the epoch and what the layered method now
+returns, `critical-open`/`critical-closed`). Commands on stdin: `critical SECONDS` opens a
+critical section in another thread for that long.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+import time
+
+import rclpy
+
+from contextros.core import Layer, critical, layered, proceed
+from contextros.protocol import LayerState
+from contextros.ros import ContextNode, spin_nodes
+
+LAYERS = {
+    "Indoor": Layer("Indoor", group="location"),
+    "Outdoor": Layer("Outdoor", group="location"),
+    "Night": Layer("Night"),
+    "Slow": Layer("Slow", excludes=("Fast",)),
+    "Fast": Layer("Fast"),
+    "Gps": Layer("Gps", requires=("Outdoor",)),
+}
+
+
+class Cleaner:
+    @layered
+    def mode(self) -> str:
+        return "base"
+
+    @mode.partial(LAYERS["Indoor"])
+    def mode(self) -> str:
+        return "wipe+" + proceed(self)
+
+    @mode.partial(LAYERS["Outdoor"])
+    def mode(self) -> str:
+        return "vacuum+" + proceed(self)
+
+    @mode.partial(LAYERS["Night"])
+    def mode(self) -> str:
+        return "quiet+" + proceed(self)
+
+
+def emit(event: str, **fields: object) -> None:
+    print(json.dumps({"event": event, "t": time.monotonic(), **fields}), flush=True)
+
+
+def hold_critical(seconds: float) -> None:
+    with critical():
+        emit("critical-open")
+        time.sleep(seconds)
+        emit("critical-closed")
+
+
+def read_commands() -> None:
+    for line in sys.stdin:
+        words = line.split()
+        if words and words[0] == "critical":
+            threading.Thread(target=hold_critical, args=(float(words[1]),), daemon=True).start()
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--name", required=True)
+    parser.add_argument("--layers", default=",".join(LAYERS))
+    parser.add_argument("--heartbeat", type=float, default=0.25)
+    args = parser.parse_args()
+    rclpy.init()
+    cleaner = Cleaner()
+    node = ContextNode(args.name, layers=args.layers.split(","), heartbeat_period=args.heartbeat)
+
+    def on_applied(state: LayerState) -> None:
+        emit("applied", epoch=state.epoch, active=list(state.active), mode=cleaner.mode())
+
+    node.context_participant.add_listener(on_applied)
+    threading.Thread(target=read_commands, daemon=True).start()
+    emit("ready", node=node.get_fully_qualified_name())
+    spin_nodes([node])
+    rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    main()
