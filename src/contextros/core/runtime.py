@@ -281,11 +281,10 @@ class Runtime:
             self._deferred.clear()
             self._critical_depth = 0
             self._observers.clear()
-            heads = {function: function.head_for(()) for function in list(self._functions)}
             self.active = ()
             self.epoch += 1
-            for function, head in heads.items():
-                function.global_head = head
+            for scope in list(self._scopes):
+                scope.invalidate()
             self._reinstall_all()
 
     def effective(self) -> Configuration:
