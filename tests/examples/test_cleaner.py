@@ -1,0 +1,70 @@
+"""The cleaning robot: its layers alone, then the whole demo in real processes."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from examples.launch import REPOSITORY, ros_environment
+
+from contextros import set_active
+from contextros.language import load
+
+location = load(Path(REPOSITORY, "examples", "cleaner", "location.layers"))
+
+
+def test_indoors_the_robot_dead_reckons_from_the_gyro_and_wipes() -> None:
+    set_active([location.Indoor])
+    start = location.Pose(1.0, 2.0, 0.0, "none")
+    pose = location.estimate_pose(start, location.Sensors(0.0, 2.0, (50.0, 50.0)), 0.5)
+    assert (pose.x, pose.y, pose.source) == (2.0, 2.0, "gyro")  # the GPS is ignored
+    assert location.cleaning_method() == "wiping"
+
+
+def test_outdoors_the_robot_takes_the_gps_fix_and_vacuums() -> None:
+    set_active([location.Outdoor])
+    start = location.Pose(1.0, 2.0, 0.0, "none")
+    pose = location.estimate_pose(start, location.Sensors(0.5, 2.0, (7.0, 8.0)), 0.5)
+    assert (pose.x, pose.y, pose.heading, pose.source) == (7.0, 8.0, 0.25, "GPS")
+    between_fixes = location.estimate_pose(pose, location.Sensors(0.0, 2.0, None), 0.5)
+    assert (between_fixes.x, between_fixes.y) == (7.0, 8.0)
+    assert location.cleaning_method() == "vacuuming"
+
+
+def lines_of(output: str, process: str) -> list[str]:
+    """The text of the narrated lines of one process ("  1.05 s  cleaning   text")."""
+    found = []
+    for line in output.splitlines():
+        parts = line.split(maxsplit=3)
+        if len(parts) == 4 and parts[1] == "s" and parts[2] == process:
+            found.append(parts[3])
+    return found
+
+
+@pytest.mark.ros
+def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_id: int) -> None:
+    demo = subprocess.run(
+        [sys.executable, "-m", "examples.demo"],
+        cwd=REPOSITORY,
+        env=ros_environment(domain_id),
+        capture_output=True,
+        text=True,
+        timeout=90,
+    )
+    assert demo.returncode == 0, demo.stdout + demo.stderr
+    out = demo.stdout
+    switches = [t.split(":")[0] for t in lines_of(out, "context_detector") if "switched" in t]
+    assert switches == ["switched to Indoor", "switched to Outdoor", "switched to Indoor"]
+    positions = [t.split()[3] for t in lines_of(out, "localization") if t.startswith("position")]
+    assert positions == ["gyro", "GPS", "gyro"]
+    methods = [t.split()[2] for t in lines_of(out, "cleaning") if t.startswith("cleaning by")]
+    assert methods == ["wiping", "vacuuming", "wiping"]
+    # Cause before effect: the robot is outside before any node behaves as outdoors.
+    narration = out.splitlines()
+    left = next(i for i, t in enumerate(narration) if "leaves the building" in t)
+    first_gps = next(i for i, t in enumerate(narration) if "position from the GPS" in t)
+    first_vacuum = next(i for i, t in enumerate(narration) if "cleaning by vacuuming" in t)
+    assert left < first_gps and left < first_vacuum
+    assert "demo complete" in out
