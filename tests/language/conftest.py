@@ -43,4 +43,3 @@ def load_fixture(fixture_copy: Callable[[str], Path]) -> Callable[[str], ModuleT
         return load(fixture_copy(name), name=f"{stem}_{next(_names)}")
 
     return load_copy
-

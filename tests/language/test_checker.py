@@ -154,14 +154,17 @@ def test_async_and_plain_implementations_do_not_mix() -> None:
 
 
 def test_annotations_and_default_values_may_differ() -> None:
-    assert diagnostics(
-        """\
+    assert (
+        diagnostics(
+            """\
         layer A:
             def f(x: int, y: int = 1) -> int: ...
         layer B excludes A:
             def f(x, y=2): ...
         """
-    ) == []
+        )
+        == []
+    )
 
 
 def test_methods_of_classes_the_header_does_not_define() -> None:

@@ -104,21 +104,33 @@ def test_decorators_belong_to_the_method_below_them() -> None:
 
 
 def test_comments_and_blank_lines_between_declarations() -> None:
-    tree = parse("# start\n\nlayer A:\n    # note\n\n    def f(): ...\n# between\n\nlayer B:\n    def f(): ...\n")
+    tree = parse(
+        "# start\n\nlayer A:\n    # note\n\n    def f(): ...\n"
+        "# between\n\nlayer B:\n    def f(): ...\n"
+    )
     assert [layer.name for layer in tree.layers] == ["A", "B"]
 
 
 @pytest.mark.parametrize(
     ("text", "expected"),
     [
-        ("layer A excludes B,:\n    def f(): ...\n", (1, 20, "expected a layer name after 'excludes', found ':'")),
-        ("layer class:\n    def f(): ...\n", (1, 7, "expected a layer name after 'layer', found 'class'")),
+        (
+            "layer A excludes B,:\n    def f(): ...\n",
+            (1, 20, "expected a layer name after 'excludes', found ':'"),
+        ),
+        (
+            "layer class:\n    def f(): ...\n",
+            (1, 7, "expected a layer name after 'layer', found 'class'"),
+        ),
         ("layer A\n    def f(): ...\n", (1, 8, "expected ':' at the end of the layer declaration")),
         (
             "layer A foo:\n    def f(): ...\n",
             (1, 9, "expected 'excludes', 'requires', 'after' or ':', found 'foo'"),
         ),
-        ("layer A excludes:\n    def f(): ...\n", (1, 17, "expected a layer name after 'excludes', found ':'")),
+        (
+            "layer A excludes:\n    def f(): ...\n",
+            (1, 17, "expected a layer name after 'excludes', found ':'"),
+        ),
         ("layer A: def f(): ...\n", (1, 10, "a layer's methods start on the next line, indented")),
         ("layer A excludes $:\n    def f(): ...\n", (1, 18, "unexpected character '$'")),
         ("group g A, B\n", (1, 9, "expected ':' after the group name")),
@@ -128,8 +140,12 @@ def test_comments_and_blank_lines_between_declarations() -> None:
         ("layer A:\n", (1, 9, "layer A is empty: expected indented methods below it")),
         (
             "layer A:\n    def f(): ...\nx = 1\n",
-            (3, 1, "expected a declaration ('layer', 'base' or 'group'), found 'x'; Python code "
-             "belongs in the header, above the first declaration"),
+            (
+                3,
+                1,
+                "expected a declaration ('layer', 'base' or 'group'), found 'x'; Python code "
+                "belongs in the header, above the first declaration",
+            ),
         ),
         (
             "layer A:\n    def f(): ...\n  def g(): ...\n",
@@ -137,16 +153,28 @@ def test_comments_and_blank_lines_between_declarations() -> None:
         ),
         (
             "layer A:\n    x = 1\n",
-            (2, 5, "expected a method ('def name(...):' or 'def Class.name(...):'), a hook "
-             "(on activate:) in layer A"),
+            (
+                2,
+                5,
+                "expected a method ('def name(...):' or 'def Class.name(...):'), a hook "
+                "(on activate:) in layer A",
+            ),
         ),
-        ("layer A:\n    on start:\n        pass\n", (2, 5, "expected 'on activate:' or 'on deactivate:'")),
+        (
+            "layer A:\n    on start:\n        pass\n",
+            (2, 5, "expected 'on activate:' or 'on deactivate:'"),
+        ),
         ("layer A:\n    on activate\n        pass\n", (2, 16, "expected ':' after 'on activate'")),
-        ("base:\n    on activate:\n        pass\n", (2, 5, "activation hooks belong to a layer, not to the base block")),
+        (
+            "base:\n    on activate:\n        pass\n",
+            (2, 5, "activation hooks belong to a layer, not to the base block"),
+        ),
         ("group g: A\n    B\n", (2, 5, "unexpected indentation: a group is declared on one line")),
     ],
 )
-def test_structural_errors_at_their_exact_position(text: str, expected: tuple[int, int, str]) -> None:
+def test_structural_errors_at_their_exact_position(
+    text: str, expected: tuple[int, int, str]
+) -> None:
     assert only_error(text) == expected
 
 
@@ -176,7 +204,11 @@ def test_python_syntax_error_in_the_def_line_after_a_renamed_target() -> None:
 
 
 def test_python_syntax_errors_in_the_header() -> None:
-    assert only_error("import\nlayer A:\n    def f(): ...\n") == (1, 7, "Python syntax error: invalid syntax")
+    assert only_error("import\nlayer A:\n    def f(): ...\n") == (
+        1,
+        7,
+        "Python syntax error: invalid syntax",
+    )
 
 
 def test_python_syntax_warnings_become_diagnostics() -> None:

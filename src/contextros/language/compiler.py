@@ -94,6 +94,11 @@ def _relocate(node: ast.AST, origins: list[_Line], source_lines: list[str]) -> N
         end_col = getattr(node, "end_col_offset", None)
         if end_col is not None:
             node.end_col_offset = end.column(end_col)  # type: ignore[attr-defined]
+        # Python refuses inverted ranges; only a renamed `def` line could produce one.
+        if node.end_lineno < node.lineno:  # type: ignore[attr-defined]
+            node.end_lineno = node.lineno  # type: ignore[attr-defined]
+        if node.end_lineno == node.lineno and (node.end_col_offset or 0) < node.col_offset:  # type: ignore[attr-defined]
+            node.end_col_offset = node.col_offset  # type: ignore[attr-defined]
         return
     # Generated code (or a node spanning it): the whole declaration line.
     line = start.line
@@ -192,20 +197,20 @@ class _Emitter:
     def layer(self, layer: LayerDecl, group: str | None) -> None:
         arguments: list[str] = []
         if layer.description is not None:
-            arguments.append(f"description={layer.description!r}")
+            arguments.append(f"description={_literal(layer.description)}")
         if group is not None:
-            arguments.append(f"group={group!r}")
+            arguments.append(f"group={_literal(group)}")
         for relation in ("excludes", "requires"):
             names = _unique(ref.name for ref in getattr(layer, relation))
             if names:
-                arguments.append(f"{relation}={tuple(names)!r}")
+                arguments.append(f"{relation}={_names_tuple(names)}")
         for hook in layer.hooks:
             arguments.append(f"on_{hook.event}={hook.generated_name}")
         self.glue(f"# {self.name}:{layer.at.line}", layer.at.line)
         if not arguments:
-            self.glue(f"{layer.name} = _Layer({layer.name!r})", layer.at.line)
+            self.glue(f"{layer.name} = _Layer({_literal(layer.name)})", layer.at.line)
             return
-        self.glue(f"{layer.name} = _Layer(\n    {layer.name!r},", layer.at.line)
+        self.glue(f"{layer.name} = _Layer(\n    {_literal(layer.name)},", layer.at.line)
         for argument in arguments:
             self.glue(f"    {argument},", layer.at.line)
         self.glue(")", layer.at.line)
@@ -239,11 +244,11 @@ class _Emitter:
         self.blank(line)
         dispatch = key if first.owner is None else f"{first.owner}_{first.name}"
         if first.owner is not None:
-            where = (self.file.path, first.at.line, first.at.col)
+            where = f"({_literal(self.file.path)}, {first.at.line}, {first.at.col})"
             self.glue(
                 f"{dispatch} = _layered_method(\n"
-                f"    {first.owner}, {first.name!r}, "
-                f"base={dispatch if base is not None else None}, where={where!r}\n)",
+                f"    {first.owner}, {_literal(first.name)}, "
+                f"base={dispatch if base is not None else None}, where={where}\n)",
                 line,
             )
         for partial in partials:
@@ -277,7 +282,21 @@ class _Emitter:
             f"\n\n{_RULE}\n# The layers of this file, and the orders declared with 'after'.", line
         )
         self.glue(f"__layers__ = ({names}{',' if len(self.file.layers) == 1 else ''})", line)
-        self.glue(f"__layer_order__ = {tuple(order)!r}", line)
+        pairs = [_names_tuple(pair) for pair in order]
+        self.glue(f"__layer_order__ = ({', '.join(pairs)}{',' if len(pairs) == 1 else ''})", line)
+
+
+def _literal(value: str) -> str:
+    """A string literal, double-quoted like the rest of the code base."""
+    text = repr(value)
+    if text.startswith("'") and '"' not in value:
+        text = '"' + text[1:-1].replace("\\'", "'") + '"'
+    return text
+
+
+def _names_tuple(names: Iterable[str]) -> str:
+    items = [_literal(name) for name in names]
+    return f"({items[0]},)" if len(items) == 1 else f"({', '.join(items)})"
 
 
 def _position(function: Function) -> tuple[int, int]:

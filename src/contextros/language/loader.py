@@ -55,7 +55,10 @@ def code_of(path: str | os.PathLike[str]) -> CodeType:
         return cached
     compiled = compile_source(data.decode("utf-8"), source_path)
     for diagnostic in compiled.warnings:
-        warnings.warn(diagnostic.render(), LayerInteractionWarning, stacklevel=3)
+        # Attributed to the layer file's line, like Python's own SyntaxWarnings.
+        warnings.warn_explicit(
+            diagnostic.message, LayerInteractionWarning, diagnostic.path, diagnostic.line
+        )
     code = compiled.code()
     _write_cache(cache, source_path, stat, digest, code)
     return code

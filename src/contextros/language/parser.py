@@ -13,6 +13,7 @@ import io
 import keyword
 import re
 import tokenize
+import unicodedata
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -40,7 +41,7 @@ _NAME = r"[^\W\d]\w*"
 # A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`).
 _DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
 # Keywords that may follow a name in a Python expression statement.
-_OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if"})
+_OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
 _DECLARATION_WORD = re.compile(r"(layer|base|group)\b")
 _DEF = re.compile(
     rf"(?P<indent>[ \t]*)(?:async[ \t]+)?def[ \t]+"
@@ -66,6 +67,17 @@ def parse_with_diagnostics(
     return _Parser(source, path).run()
 
 
+def name_problem(name: str) -> str:
+    """Why `name` cannot name a layer or a group in generated Python ('' if it can)."""
+    if not name.isidentifier():
+        return "is not a Python identifier"
+    if unicodedata.normalize("NFKC", name) != name:
+        return "is not in the normal form Python uses for identifiers (NFKC)"
+    if name == "__debug__":
+        return "cannot be assigned in Python"
+    return ""
+
+
 @dataclass(frozen=True)
 class _Token:
     kind: str
@@ -82,17 +94,27 @@ def _is_blank(text: str) -> bool:
     return not stripped or stripped.startswith("#")
 
 
-def _is_open(lines: list[str]) -> bool:
-    """True when the text ends inside a string or brackets, so its next line continues it."""
+def _open_in(lines: list[str]) -> str:
+    """What the text ends inside: "string", "brackets" or "" (complete)."""
     text = "\n".join(lines) + "\n"
     try:
         for _ in tokenize.generate_tokens(io.StringIO(text).readline):
             pass
-    except tokenize.TokenError:
-        return True
+    except tokenize.TokenError as error:
+        return "string" if "string" in str(error.args[0]) else "brackets"
     except (SyntaxError, ValueError):
-        return False
-    return False
+        return ""
+    return ""
+
+
+def _is_open(lines: list[str]) -> bool:
+    """True when the text ends inside a string or brackets, so its next line continues it."""
+    return bool(_open_in(lines))
+
+
+def _starts_declaration(text: str) -> bool:
+    match = _DECLARATION_START.match(text)
+    return match is not None and match.group(2) not in _OPERATOR_WORDS
 
 
 def _lines_inside_strings(lines: list[str]) -> set[int]:
@@ -152,12 +174,9 @@ class _Parser:
     def _header_end(self) -> int:
         """Index of the first declaration line: the header is everything before it."""
         for i, text in enumerate(self.lines):
-            match = _DECLARATION_START.match(text)
-            if match is None:
-                continue
-            if match.group(2) in _OPERATOR_WORDS:
-                continue  # `layer is None`, `group in groups`: Python, not a declaration
-            if not _is_open(self.lines[:i]):
+            # Only a string may hold a declaration-like line; unclosed brackets before it
+            # are an error of the header, reported as such.
+            if _starts_declaration(text) and _open_in(self.lines[:i]) != "string":
                 return i
         return len(self.lines)
 
@@ -173,7 +192,8 @@ class _Parser:
             if not text.strip() or text[0] in " \t#":
                 j += 1
                 continue
-            if _is_open(self.lines[start + 1 : j]):
+            state = _open_in(self.lines[start + 1 : j])
+            if state == "string" or (state == "brackets" and not _starts_declaration(text)):
                 j += 1
                 continue
             break
@@ -257,7 +277,13 @@ class _Parser:
 
     def _expect_name(self, row: int, tokens: list[_Token], i: int, what: str) -> Ref | None:
         if i < len(tokens) and tokens[i].kind == "name" and not keyword.iskeyword(tokens[i].text):
-            return Ref(tokens[i].text, Position(row + 1, tokens[i].col + 1))
+            name = tokens[i].text
+            at = Position(row + 1, tokens[i].col + 1)
+            problem = name_problem(name)
+            if problem:
+                self.sink.error(f"{name!r} {problem}", at.line, at.col)
+                return None
+            return Ref(name, at)
         col = tokens[i].col if i < len(tokens) else len(self.lines[row].split("#")[0].rstrip())
         found = f", found {tokens[i].text!r}" if i < len(tokens) else ""
         self.sink.error(f"expected {what}{found}", row + 1, col + 1)
@@ -418,10 +444,16 @@ class _Parser:
         return result
 
     def _rename(self, line: SourceLine, start: int, end: int, new: str) -> SourceLine:
-        """Replace text[start:end] of a dedented line by `new`, keeping columns mappable."""
+        """Replace text[start:end] of a dedented line by `new`, keeping columns mappable.
+
+        Python's AST counts columns in UTF-8 bytes, so the shift after the new name is.
+        """
         text = line.text[:start] + new + line.text[end:]
-        delta_after = (end - start) - len(new) + line.delta
-        return SourceLine(text, line.line, line.delta, start + len(new), delta_after)
+        old_width = len(line.text[start:end].encode())
+        split = len(text[: start + len(new)].encode())
+        return SourceLine(
+            text, line.line, line.delta, split, old_width - len(new.encode()) + line.delta
+        )
 
     def _function(self, first: int, end: int, layer: LayerDecl | None) -> Function | None:
         lines = self._dedent(first, end)
@@ -526,6 +558,17 @@ class _Parser:
                 return None
             except (ValueError, RecursionError, MemoryError) as error:
                 self.sink.error(f"Python cannot parse this: {error}", fallback_line, 1)
+                return None
+            try:
+                # Errors only the compiler finds: `return` outside a function, misplaced
+                # `nonlocal`, `await` outside `async def`...
+                compile(node, "<layer piece>", "exec", dont_inherit=True)
+            except SyntaxError as error:
+                row, col = where(error.lineno or fallback_line, max((error.offset or 1) - 1, 0))
+                self.sink.error(f"Python syntax error: {error.msg}", row, col + 1)
+                return None
+            except (ValueError, RecursionError, MemoryError) as error:
+                self.sink.error(f"Python cannot compile this: {error}", fallback_line, 1)
                 return None
         for warning in caught:
             if issubclass(warning.category, (SyntaxWarning, DeprecationWarning)):
