@@ -82,7 +82,9 @@ def register(commands: Any) -> None:
     status.set_defaults(run=run_status)
 
     watch = commands.add_parser("watch", help="stream layer switches and their latency")
-    watch.add_argument("--count", type=int, metavar="N", help="stop after N switches")
+    watch.add_argument(
+        "--count", type=int, metavar="N", help="stop after N switches (and their acknowledgements)"
+    )
     watch.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     watch.add_argument("--json", action="store_true", help="one JSON object per line")
     watch.set_defaults(run=run_watch)
@@ -307,9 +309,10 @@ def run_watch(args: argparse.Namespace) -> int:
 
     rclpy.init()
     node = Node(f"contextros_watch_{_suffix()}")
-    seen = 0
-    # Per epoch: when it was published and which live nodes have not applied it yet.
-    waiting: dict[int, tuple[float, set[str]]] = {}
+    switches = 0
+    last_switch = 0.0
+    # Per epoch: when it was published, the live nodes that must apply it, and who has not.
+    waiting: dict[int, tuple[float, int, set[str]]] = {}
     last_heard: dict[str, float] = {}
     applied: dict[str, int] = {}
 
@@ -318,43 +321,50 @@ def run_watch(args: argparse.Namespace) -> int:
         return {n for n, t in last_heard.items() if now - t < 2.0}
 
     def on_state(msg: Any) -> None:
-        nonlocal seen
-        seen += 1
+        nonlocal switches, last_switch
         published = stamp_to_seconds(msg.stamp)
-        delay = (time.time() - published) * 1000
-        pending = {n for n in live_nodes() if applied.get(n, 0) < msg.epoch}
-        waiting[msg.epoch] = (published, pending)
+        # The first message is the state as it stood when we connected (transient local).
+        first = switches == 0 and last_switch == 0.0
         record = {
-            "event": "state",
+            "event": "current" if first else "state",
             "epoch": msg.epoch,
             "active": list(msg.active_layers),
             "requester": msg.requester,
             "reason": msg.reason,
-            "delivery_ms": round(delay, 3),
+            "delivery_ms": round((time.time() - published) * 1000, 3),
         }
+        last_switch = time.monotonic()
         _print_watch(args.json, record)
+        if first:
+            return
+        switches += 1
+        pending = {n for n in live_nodes() if applied.get(n, 0) < msg.epoch}
+        waiting[msg.epoch] = (published, len(pending), pending)
         if not pending:
-            _report_applied(args.json, waiting.pop(msg.epoch)[0], msg.epoch, 0)
+            _report_applied(args.json, published, msg.epoch, 0)
+            del waiting[msg.epoch]
 
     def on_status(msg: Any) -> None:
         last_heard[msg.node] = time.monotonic()
         if msg.leaving:
             last_heard.pop(msg.node, None)
         applied[msg.node] = msg.applied_epoch
-        for epoch, (published, pending) in sorted(waiting.items()):
+        for epoch, (published, count, pending) in sorted(waiting.items()):
             if msg.applied_epoch >= epoch or msg.leaving:
                 pending.discard(msg.node)
             if not pending:
                 del waiting[epoch]
-                _report_applied(args.json, published, epoch, len(applied))
+                _report_applied(args.json, published, epoch, count)
+
+    def finished() -> bool:
+        # After the last counted switch, wait (a little) for its acknowledgements too.
+        if args.count is None or switches < args.count:
+            return False
+        return not waiting or time.monotonic() - last_switch > 2.0
 
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
-    spin_nodes(
-        [node],
-        until=lambda: args.count is not None and seen >= args.count,
-        timeout=args.duration,
-    )
+    spin_nodes([node], until=finished, timeout=args.duration)
     rclpy.try_shutdown()
     return 0
 
@@ -370,17 +380,18 @@ def _report_applied(as_json: bool, published: float, epoch: int, nodes: int) -> 
 def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
     if as_json:
         print(json.dumps(record), flush=True)
-    elif record["event"] == "state":
+    elif record["event"] in ("current", "state"):
         active = ", ".join(record["active"]) or "none"
         who = f"{record['requester'] or '?'}: {record['reason'] or '-'}"
-        print(
-            f"epoch {record['epoch']:>6}  [{active}]  ({who})  "
-            f"delivered in {record['delivery_ms']:.2f} ms",
-            flush=True,
+        timing = (
+            "current state"
+            if record["event"] == "current"
+            else f"delivered in {record['delivery_ms']:.2f} ms"
         )
+        print(f"epoch {record['epoch']:>6}  [{active}]  ({who})  {timing}", flush=True)
     else:
         print(
-            f"epoch {record['epoch']:>6}  applied by all live nodes "
+            f"epoch {record['epoch']:>6}  applied by all {record['nodes']} live node(s) "
             f"{record['latency_ms']:.2f} ms after publication",
             flush=True,
         )

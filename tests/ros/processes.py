@@ -1,0 +1,133 @@
+"""Child processes for the ROS tests: started with this interpreter, read line by line,
+killed for sure at the end of the test that started them."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+PARTICIPANT_SCRIPT = HERE / "participant_process.py"
+CLIENT_SCRIPT = HERE / "client_process.py"
+
+
+class Child:
+    """One process whose stdout lines are collected (JSON lines parsed) as they arrive."""
+
+    def __init__(self, name: str, argv: Sequence[str]) -> None:
+        self.name = name
+        self.lines: list[str] = []
+        self.events: list[dict[str, Any]] = []
+        self._changed = threading.Condition()
+        env = dict(os.environ)
+        env.pop("RMW_IMPLEMENTATION", None)
+        self.popen = subprocess.Popen(
+            [sys.executable, *argv],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            env=env,
+        )
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+
+    def _read(self) -> None:
+        assert self.popen.stdout is not None
+        for line in self.popen.stdout:
+            with self._changed:
+                self.lines.append(line.rstrip("\n"))
+                if line.startswith("{"):
+                    with contextlib.suppress(json.JSONDecodeError):
+                        self.events.append(json.loads(line))
+                self._changed.notify_all()
+        with self._changed:
+            self._changed.notify_all()
+
+    def wait_for(
+        self, predicate: Callable[[list[dict[str, Any]]], Any], timeout: float, what: str = ""
+    ) -> Any:
+        """Wait until `predicate(events)` is truthy and return it; fail with the output."""
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            while True:
+                value = predicate(self.events)
+                if value:
+                    return value
+                remaining = deadline - time.monotonic()
+                if remaining <= 0 or (
+                    self.popen.poll() is not None and not self._reader.is_alive()
+                ):
+                    output = "\n".join(self.lines[-30:])
+                    raise AssertionError(
+                        f"{self.name}: timed out waiting for {what or predicate} "
+                        f"(exit status {self.popen.poll()}); last output:\n{output}"
+                    )
+                self._changed.wait(min(remaining, 0.2))
+
+    def applied(self) -> list[dict[str, Any]]:
+        with self._changed:
+            return [e for e in self.events if e["event"] == "applied"]
+
+    def wait_applied(self, epoch: int, timeout: float = 5.0) -> dict[str, Any]:
+        return self.wait_for(
+            lambda events: next(
+                (e for e in events if e["event"] == "applied" and e["epoch"] >= epoch), None
+            ),
+            timeout,
+            f"epoch {epoch} applied",
+        )
+
+    def send(self, line: str) -> None:
+        assert self.popen.stdin is not None
+        self.popen.stdin.write(line + "\n")
+        self.popen.stdin.flush()
+
+    def signal(self, signum: int) -> None:
+        if self.popen.poll() is None:
+            self.popen.send_signal(signum)
+
+    def wait_exit(self, timeout: float = 10.0) -> int:
+        status = self.popen.wait(timeout)
+        self._reader.join(timeout)
+        return status
+
+    def output(self) -> str:
+        return "\n".join(self.lines)
+
+
+class ProcessGroup:
+    def __init__(self) -> None:
+        self.children: list[Child] = []
+
+    def start(self, name: str, argv: Sequence[str]) -> Child:
+        child = Child(name, argv)
+        self.children.append(child)
+        return child
+
+    def participant(self, name: str, *extra: str) -> Child:
+        return self.start(name, [str(PARTICIPANT_SCRIPT), "--name", name, *extra])
+
+    def manager(self, *extra: str, name: str = "manager") -> Child:
+        return self.start(name, ["-m", "contextros", "manager", *extra])
+
+    def kill_all(self) -> None:
+        for child in self.children:
+            if child.popen.poll() is None:
+                child.popen.send_signal(signal.SIGKILL)
+        for child in self.children:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                child.popen.wait(5)
+            for stream in (child.popen.stdin, child.popen.stdout):
+                if stream is not None:
+                    with contextlib.suppress(OSError):
+                        stream.close()

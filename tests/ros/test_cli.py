@@ -1,0 +1,90 @@
+"""The `contextros` command against a running manager: exit statuses and messages."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from contextros.ros import LayerClient
+from tests.ros.processes import ProcessGroup
+from tests.ros.system import RunningSystem, start_system
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient) -> Iterator[RunningSystem]:
+    group = ProcessGroup()
+    try:
+        yield start_system(group, client, ["cli1", "cli2"])
+    finally:
+        group.kill_all()
+
+
+def contextros(*args: str, domain: str | None = None) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ)
+    if domain is not None:
+        env["ROS_DOMAIN_ID"] = domain
+    return subprocess.run(
+        [sys.executable, "-m", "contextros", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+
+
+def test_activate_sync_reports_the_acknowledging_nodes(system: RunningSystem) -> None:
+    done = contextros("activate", "Indoor", "Night", "--sync", "--timeout", "5", "--json")
+    assert done.returncode == 0, done.stderr
+    answer = json.loads(done.stdout)
+    assert answer["success"] and answer["active"] == ["Indoor", "Night"]
+    assert answer["acknowledged"] == ["/cli1", "/cli2"]
+
+
+def test_unknown_layer_exits_non_zero_with_the_managers_message(system: RunningSystem) -> None:
+    refused = contextros("switch", "--on", "Underwater", "--off", "Night")
+    assert refused.returncode == 1
+    assert "unknown layer 'Underwater'" in refused.stderr
+    assert "nothing changed" in refused.stderr
+
+
+def test_status_shows_layers_nodes_and_epochs(system: RunningSystem, client: LayerClient) -> None:
+    shown = contextros("status")
+    assert shown.returncode == 0, shown.stderr
+    epoch = client.query().epoch
+    assert f"epoch {epoch}" in shown.stdout
+    assert "/cli1" in shown.stdout and "/cli2" in shown.stdout
+    assert "location" in shown.stdout  # the Indoor/Outdoor group
+    data = json.loads(contextros("status", "--json").stdout)
+    assert {p["node"] for p in data["participants"]} == {"/cli1", "/cli2"}
+    assert all(p["applied_epoch"] == epoch for p in data["participants"])
+
+
+def test_watch_streams_switches_with_latency(
+    system: RunningSystem, client: LayerClient, processes: ProcessGroup
+) -> None:
+    watch = processes.start("watch", ["-m", "contextros", "watch", "--count", "1", "--json"])
+    current = client.query().epoch
+    watch.wait_for(lambda events: any(e["event"] == "current" for e in events), 10, "current")
+    time.sleep(0.5)  # the watcher hears the participants' heartbeats
+    result = client.request([], ["Night"], synchronous=True, timeout=5)
+    assert watch.wait_exit(10) == 0
+    assert [(e["event"], e["epoch"]) for e in watch.events] == [
+        ("current", current),
+        ("state", result.epoch),
+        ("applied", result.epoch),
+    ]
+    applied = watch.events[-1]
+    assert applied["nodes"] == 2 and 0 <= applied["latency_ms"] < 1000
+
+
+def test_no_manager_exits_with_status_3() -> None:
+    empty_domain = str(int(os.environ["ROS_DOMAIN_ID"]) + 100)
+    lonely = contextros("activate", "Night", "--wait-manager", "0.5", domain=empty_domain)
+    assert lonely.returncode == 3
+    assert "no Layer manager" in lonely.stderr

@@ -1,0 +1,76 @@
+"""Faults: a participant killed mid-activation, a manager killed and restarted."""
+
+from __future__ import annotations
+
+import itertools
+import signal
+import time
+
+from contextros.ros import LayerClient
+from tests.ros.processes import ProcessGroup
+from tests.ros.system import start_system, wait_registry
+
+
+def test_participant_killed_during_a_synchronous_activation(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    system = start_system(processes, client, ["k1", "k2", "k3"])
+    victim = system.participants["k3"]
+    # Hold k3 in a critical section so that it is surely in the middle of the activation.
+    victim.send("critical 30")
+    victim.wait_for(lambda events: any(e["event"] == "critical-open" for e in events), 5)
+    killer_delay = 0.3
+    started = time.monotonic()
+    # The in-process client spins only its own node, so kill from a timer thread.
+    import threading
+
+    threading.Timer(killer_delay, victim.signal, args=(signal.SIGKILL,)).start()
+    result = client.request(["Night"], synchronous=True, timeout=20)
+    elapsed = time.monotonic() - started
+    assert not result.success
+    assert result.not_acknowledged == ("/k3",), result.message
+    assert "/k3 (dropped, silent for" in result.message
+    assert result.acknowledged == ("/k1", "/k2")
+    # Liveness timeout 1 s (tests' manager) + heartbeat and tick granularity.
+    assert elapsed < killer_delay + 2.0, f"took {elapsed:.2f} s to notice"
+    registry = client.query()
+    assert "/k3" in list(registry.dropped)
+    following = client.request(["Indoor"], synchronous=True, timeout=5)
+    assert following.success, following.message
+    assert following.acknowledged == ("/k1", "/k2")
+
+
+def test_restarted_manager_keeps_epochs_monotonic_and_the_active_set(
+    client: LayerClient, processes: ProcessGroup, tmp_path: object
+) -> None:
+    from pathlib import Path
+
+    state_file = Path(str(tmp_path)) / "state.json"
+    system = start_system(processes, client, ["r1", "r2", "r3"], "--state-file", str(state_file))
+    client.request(["Outdoor", "Night"], synchronous=True, timeout=5)
+    before = client.request(["Gps"], synchronous=True, timeout=5)
+    assert before.success, before.message
+
+    # 1. Killed and restarted with its state file.
+    system.manager.signal(signal.SIGKILL)
+    system.manager.wait_exit()
+    processes.manager("--liveness-timeout", "1.0", "--state-file", str(state_file), name="m2")
+    second = wait_registry(client, lambda r: r.epoch > before.epoch, what="recovered state")
+    assert second.epoch == before.epoch + 1
+    assert list(second.active_layers) == ["Outdoor", "Night", "Gps"]
+
+    # 2. Killed and restarted without memory: the participants remember.
+    processes.children[-1].signal(signal.SIGKILL)
+    processes.children[-1].wait_exit()
+    processes.manager("--liveness-timeout", "1.0", name="m3")
+    third = wait_registry(client, lambda r: r.epoch > second.epoch, what="recovered state")
+    assert third.epoch == second.epoch + 1
+    assert list(third.active_layers) == ["Outdoor", "Night", "Gps"]
+    assert "recovered from /r" in third.reason
+
+    after = client.request(["Indoor"], ["Gps"], synchronous=True, timeout=5)
+    assert after.success and after.epoch == third.epoch + 1
+    for child in system.participants.values():
+        epochs = [e["epoch"] for e in child.applied()]
+        assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name}: {epochs}"
+        assert epochs[-1] == after.epoch

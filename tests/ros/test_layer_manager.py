@@ -1,0 +1,149 @@
+"""The Layer manager with three participant processes: the normal life of a system.
+
+One manager and participants /p1, /p2, /p3 serve the whole module; each test leaves them
+running and consistent for the next.
+"""
+
+from __future__ import annotations
+
+import itertools
+import signal
+import time
+from collections.abc import Iterator
+
+import pytest
+
+from contextros.ros import LayerClient
+from tests.ros.processes import CLIENT_SCRIPT, ProcessGroup
+from tests.ros.system import RunningSystem, start_system, wait_registry
+
+NODES = ("/p1", "/p2", "/p3")
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient) -> Iterator[RunningSystem]:
+    group = ProcessGroup()
+    try:
+        yield start_system(group, client, ["p1", "p2", "p3"])
+    finally:
+        group.kill_all()
+
+
+def test_synchronous_activation_is_acknowledged_by_every_participant(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    client.request(["Indoor"], ["Night", "Outdoor"], synchronous=True, timeout=5)
+    result = client.request(["Night"], synchronous=True, timeout=5, reason="dusk")
+    assert result.success, result.message
+    assert result.acknowledged == NODES and result.not_acknowledged == ()
+    assert result.active == ("Indoor", "Night")
+    for child in system.participants.values():
+        # The acknowledgement came after the node applied it: the event is already there.
+        applied = child.applied()[-1]
+        assert applied["epoch"] == result.epoch
+        assert applied["mode"] == "quiet+wipe+base", "the layered method follows the manager"
+
+
+def test_unknown_layer_is_rejected_by_name_and_nothing_changes(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    before = client.query()
+    result = client.request(["Night", "Underwater"], synchronous=True, timeout=5)
+    assert not result.success
+    assert "'Underwater'" in result.message and "nothing changed" in result.message
+    after = client.query()
+    assert (after.epoch, list(after.active_layers)) == (before.epoch, list(before.active_layers))
+    time.sleep(0.2)
+    for child in system.participants.values():
+        assert child.applied()[-1]["epoch"] == before.epoch
+
+
+@pytest.mark.parametrize(
+    ("on", "off", "culprit"),
+    [
+        (["Gps"], [], "Gps requires Outdoor"),
+        (["Slow", "Fast"], [], "Slow excludes Fast"),
+        (["Indoor", "Outdoor"], [], "exclusive group 'location'"),
+    ],
+)
+def test_relation_violation_is_rejected_and_nothing_changes(
+    system: RunningSystem, client: LayerClient, on: list[str], off: list[str], culprit: str
+) -> None:
+    before = client.query()
+    result = client.request(on, off, synchronous=True, timeout=5)
+    assert not result.success and culprit in result.message, result.message
+    assert client.query().epoch == before.epoch
+
+
+def test_switch_is_one_atomic_state_everywhere(system: RunningSystem, client: LayerClient) -> None:
+    result = client.request(["Outdoor", "Gps"], ["Indoor"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    for child in system.participants.values():
+        applied = child.applied()[-1]
+        assert applied["active"] == ["Night", "Outdoor", "Gps"]
+        assert applied["mode"] == "vacuum+quiet+base"
+    client.request(["Indoor"], ["Gps"], synchronous=True, timeout=5)
+
+
+def test_late_joiner_gets_the_current_state_at_once(
+    system: RunningSystem, client: LayerClient, processes: ProcessGroup
+) -> None:
+    current = client.query()
+    late = processes.participant("p4")
+    applied = late.wait_applied(current.epoch, timeout=5)
+    assert applied["active"] == list(current.active_layers)
+    registry = wait_registry(client, lambda r: "/p4" in {p.node for p in r.participants})
+    assert registry.epoch == current.epoch, "joining does not change the state"
+    late.signal(signal.SIGTERM)
+    late.wait_exit()
+    wait_registry(client, lambda r: "/p4" not in {p.node for p in r.participants}, what="/p4 gone")
+
+
+def test_critical_section_delays_the_acknowledgement(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    p1 = system.participants["p1"]
+    p1.send("critical 1.5")
+    p1.wait_for(lambda events: any(e["event"] == "critical-open" for e in events), 5, "critical")
+    unchanged = client.request(["Night"], synchronous=True, timeout=0.1)
+    assert unchanged.success, "no change: every node already applied the current epoch"
+    started = time.monotonic()
+    short = client.request([], ["Night"], synchronous=True, timeout=0.4)
+    assert not short.success
+    assert short.not_acknowledged == ("/p1",)
+    assert "/p1 (in a critical section" in short.message
+    patient = client.request(["Night"], synchronous=True, timeout=5)
+    waited = time.monotonic() - started
+    assert patient.success, patient.message
+    assert waited > 1.0, "the acknowledgement waited for the critical section"
+    closed = next(e for e in p1.events if e["event"] == "critical-closed")
+    applied = [e for e in p1.applied() if e["epoch"] >= short.epoch]
+    assert applied and all(e["t"] >= closed["t"] for e in applied)
+
+
+def test_rapid_activations_from_two_clients_converge_without_regression(
+    system: RunningSystem, client: LayerClient, processes: ProcessGroup
+) -> None:
+    script = str(CLIENT_SCRIPT)
+    location = processes.start(
+        "client-location",
+        [script, "--name", "c_location", "--count", "100", "--layers", "Indoor,Outdoor"],
+    )
+    night = processes.start(
+        "client-night", [script, "--name", "c_night", "--count", "100", "--toggle", "Night"]
+    )
+    for child in (location, night):
+        child.wait_for(lambda events: any(e["event"] == "done" for e in events), 60, "done")
+        results = [e for e in child.events if e["event"] == "result"]
+        assert len(results) == 100 and all(r["success"] for r in results)
+        epochs = [r["epoch"] for r in results]
+        assert epochs == sorted(epochs), f"{child.name} saw the epoch go down"
+    final = client.query()
+    assert final.epoch >= 100
+    for child in system.participants.values():
+        child.wait_applied(final.epoch, timeout=5)
+        epochs = [e["epoch"] for e in child.applied()]
+        assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name} regressed"
+        assert child.applied()[-1]["active"] == list(final.active_layers)
+    registry = client.query()
+    assert all(not p.lagging for p in registry.participants)
