@@ -155,3 +155,26 @@ def test_a_base_block_replaces_the_class_method_explicitly(tmp_path: Path) -> No
     activate("A")
     assert module.Robot().beep() == "A+base"
     assert module.Robot.beep is module.Robot_beep
+
+
+def test_an_already_layered_method_is_refined_further(tmp_path: Path) -> None:
+    from contextros.language import load
+
+    path = tmp_path / "again.layers"
+    path.write_text(
+        "from contextros import layered\n\n"
+        "class Robot:\n    @layered\n    def beep(self):\n        return 'base'\n\n"
+        "layer A:\n    def Robot.beep(self):\n        return 'A+' + proceed(self)\n"
+    )
+    module = load(path, name="again_layers")
+    activate("A")
+    assert module.Robot().beep() == "A+base"
+
+    path.write_text(
+        "from contextros import layered\n\nclass Robot:\n    @layered\n    def beep(self): ...\n\n"
+        "base:\n    def Robot.beep(self):\n        return 'mine'\n\n"
+        "layer A:\n    def Robot.beep(self):\n        return 'A'\n"
+    )
+    with pytest.raises(LayerTargetError) as caught:
+        load(path, name="again_layers_2")
+    assert "already layered" in caught.value.message

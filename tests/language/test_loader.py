@@ -12,6 +12,7 @@ import pytest
 
 from contextros import activate
 from contextros.language import (
+    CompiledLayers,
     LayerInteractionWarning,
     LayerSyntaxError,
     install_import_hook,
@@ -42,7 +43,7 @@ def compilations(monkeypatch: pytest.MonkeyPatch) -> list[str]:
     compiled: list[str] = []
     original = loader.compile_source
 
-    def counting(source: str, path: str = "<layers>") -> loader.CompiledLayers:  # type: ignore[name-defined]
+    def counting(source: str, path: str = "<layers>") -> CompiledLayers:
         compiled.append(path)
         return original(source, path)
 

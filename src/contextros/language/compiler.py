@@ -232,8 +232,8 @@ class _Emitter:
         else:
             self.glue(f"# {key}: a layered method installed on class {first.owner}.", line)
             self.glue(
-                "# Its layer functions live in this module, not the class's, so the core\n"
-                "# reaches them through a one-line trampoline.",
+                "# When the class comes from another module, the core reaches the functions\n"
+                "# below through a one-line trampoline (a class of the header needs none).",
                 line,
             )
             if base is not None:
