@@ -1,0 +1,415 @@
+"""Time for a layer activation to reach every node, vs the number of nodes (the paper's Fig. 9).
+
+Set-up, for each N: the Layer manager (`contextros manager`) in its own process; N context
+nodes, at most 8 per process (N <= 8: one process; N = 64: 8 processes of 8), each
+following the manager and implementing the cleaner's Indoor/Outdoor layers
+(`examples/cleaner/location.layers`); this process is the caller. Every node also has a
+`location` parameter, validated and applied by a callback, so that the same nodes serve the
+plain-ROS baselines. Rounds alternate the series below; each switches Indoor <-> Outdoor.
+
+- asynchronous: the command returns once the state is published; measured from the state's
+  publication (its stamp) until the last node applied it (the node's own clock at apply).
+- synchronous: measured by the manager, from receiving the command until it holds every
+  node's acknowledgement (`elapsed` of the reply); the caller's round trip is shown too.
+- parameter, one by one / all in parallel: what a ROS developer would otherwise do: the
+  caller sets the parameter on every node through its `set_parameters` service, waiting
+  for each reply before the next call, or sending all calls at once; until every reply.
+- floor: one topic round trip between two processes (the caller's ping, an echo node in
+  the first worker process, its pong), measured in the same rounds, under the same load.
+
+Between two measurements the caller pauses 5 ms, as a robot's context switches are sparse:
+an idle process takes longer to wake than one kept busy by back-to-back messages (here a
+back-to-back topic round trip took about half the time of a paused one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+NODE_COUNTS = (1, 2, 4, 8, 12, 16, 32, 64)
+NODES_PER_PROCESS = 8
+ROUNDS = 30  # per series and N
+BENCH_DOMAIN_ID = 78
+FLOOR = "floor: topic round trip"
+MODES = ("asynchronous", "synchronous", "parameter, one by one", "parameter, parallel", FLOOR)
+SERIES = (*MODES[:2], "synchronous, caller", *MODES[2:])
+PINGS_PER_ROUND = 5
+PAPER_FIG9 = "0.005-0.011 s for 1-12 nodes, growing with N (asynchronous, ROS 1, C++)"
+LOCATION_LAYERS = Path(__file__).resolve().parent.parent / "examples/cleaner/location.layers"
+CONTEXTS = ("Indoor", "Outdoor")
+
+
+# -- the worker processes ---------------------------------------------------------------------
+
+
+def worker(names: list[str], echo: bool) -> None:
+    """Host context nodes (and the floor's echo) until interrupted, then print apply times."""
+    import rclpy
+    from rcl_interfaces.msg import SetParametersResult
+    from std_msgs.msg import UInt64
+
+    from contextros.language import load
+    from contextros.ros import ContextNode, spin_nodes
+
+    location = load(LOCATION_LAYERS)
+    applied: dict[str, dict[int, float]] = {name: {} for name in names}
+
+    def check(parameters: list[Any]) -> Any:
+        for parameter in parameters:
+            if parameter.name == "location" and parameter.value not in CONTEXTS:
+                return SetParametersResult(successful=False, reason="unknown location")
+        return SetParametersResult(successful=True)
+
+    # Without rclpy's own signal handler, Ctrl-C reaches spin_nodes as KeyboardInterrupt while
+    # the context is still up, so every node can still tell the manager it leaves.
+    rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
+    nodes = []
+    for name in names:
+        node = ContextNode(name, layers=location.__layers__)
+        node.add_on_set_parameters_callback(check)
+        node.declare_parameter("location", "Indoor")
+        node.context_participant.add_listener(
+            lambda state, log=applied[name]: log.__setitem__(state.epoch, time.time())
+        )
+        nodes.append(node)
+    if echo:
+        echo_node = rclpy.create_node("bench_echo")
+        pong = echo_node.create_publisher(UInt64, "bench/pong", 10)
+        echo_node.create_subscription(UInt64, "bench/ping", pong.publish, 10)
+        nodes.append(echo_node)
+    print("ready", flush=True)
+    spin_nodes(nodes)
+    print(json.dumps({"applied": applied}), flush=True)
+    rclpy.try_shutdown()
+
+
+# -- the caller -------------------------------------------------------------------------------
+
+
+class Caller:
+    """This process's node: activation client, parameter clients, state/status listener."""
+
+    def __init__(self) -> None:
+        import rclpy
+        from contextros_interfaces.msg import LayerState, ParticipantStatus
+        from std_msgs.msg import UInt64
+
+        from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, LayerClient
+
+        self.rclpy = rclpy
+        self.node = rclpy.create_node("bench_caller")
+        self.client = LayerClient(self.node, requester="bench")
+        self.published: dict[int, float] = {}  # epoch -> stamp of its state
+        self.applied_epoch: dict[str, int] = {}
+        self.pongs: dict[int, float] = {}
+        self.sequence = 0  # of the pings; a pong is matched to its ping by it
+        self.node.create_subscription(LayerState, STATE_TOPIC, self.on_state, STATE_QOS)
+        self.node.create_subscription(ParticipantStatus, STATUS_TOPIC, self.on_status, STATUS_QOS)
+        self.ping = self.node.create_publisher(UInt64, "bench/ping", 10)
+        self.node.create_subscription(UInt64, "bench/pong", self.on_pong, 10)
+        self.parameter_clients: list[Any] = []
+
+    def on_state(self, msg: Any) -> None:
+        self.published[msg.epoch] = msg.stamp.sec + msg.stamp.nanosec * 1e-9
+
+    def on_status(self, msg: Any) -> None:
+        self.applied_epoch[msg.node.lstrip("/")] = msg.applied_epoch
+
+    def on_pong(self, msg: Any) -> None:
+        self.pongs[msg.data] = time.perf_counter()
+
+    def spin_until(self, condition: Any, timeout: float = 10.0) -> bool:
+        deadline = time.monotonic() + timeout
+        while not condition():
+            if time.monotonic() > deadline:
+                return False
+            self.rclpy.spin_once(self.node, timeout_sec=0.01)
+        return True
+
+    def wait_for_nodes(self, names: list[str], timeout: float = 60.0) -> None:
+        from rcl_interfaces.srv import SetParameters
+
+        self.client.wait_for_manager(timeout)
+        wanted = set(names)
+        deadline = time.monotonic() + timeout
+        # Exactly these: the nodes of the previous N must have left, or they would be waited for.
+        while wanted != {p.node.lstrip("/") for p in self.client.query().participants}:
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"not all {len(names)} context nodes joined in {timeout:g} s")
+            time.sleep(0.2)
+        self.parameter_clients = [
+            self.node.create_client(SetParameters, f"/{name}/set_parameters") for name in names
+        ]
+        for client in self.parameter_clients:
+            if not client.wait_for_service(timeout_sec=max(0.1, deadline - time.monotonic())):
+                raise TimeoutError(f"no parameter service {client.srv_name}")
+        # Every node has applied the current state (the caller heard its status).
+        epoch = self.client.query().epoch
+        self.spin_until(lambda: all(self.applied_epoch.get(n, -1) >= epoch for n in names))
+
+    def activate(self, context: str, synchronous: bool) -> tuple[Any, float]:
+        other = CONTEXTS[1 - CONTEXTS.index(context)]
+        started = time.perf_counter()
+        result = self.client.request([context], [other], synchronous=synchronous, timeout=5.0)
+        round_trip = time.perf_counter() - started
+        if not result.success:
+            raise RuntimeError(f"activation of {context} failed: {result.message}")
+        return result, round_trip
+
+    def set_parameters(self, context: str, parallel: bool) -> float:
+        from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+        from rcl_interfaces.srv import SetParameters
+
+        value = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=context)
+        request = SetParameters.Request(parameters=[Parameter(name="location", value=value)])
+        started = time.perf_counter()
+        if parallel:
+            futures = [client.call_async(request) for client in self.parameter_clients]
+            self.spin_until(lambda: all(f.done() for f in futures))
+        else:
+            futures = []
+            for client in self.parameter_clients:
+                futures.append(client.call_async(request))
+                self.spin_until(futures[-1].done)
+        elapsed = time.perf_counter() - started
+        if not all(f.done() and f.result().results[0].successful for f in futures):
+            raise RuntimeError(f"setting the location parameter to {context} failed")
+        return elapsed
+
+    def round_trip(self) -> float:
+        from std_msgs.msg import UInt64
+
+        self.sequence += 1
+        sequence = self.sequence
+        started = time.perf_counter()
+        self.ping.publish(UInt64(data=sequence))
+        if not self.spin_until(lambda: sequence in self.pongs, timeout=2.0):
+            return math.nan
+        return self.pongs[sequence] - started
+
+    def close(self) -> None:
+        self.node.destroy_node()
+
+
+def _start_workers(launch: Any, count: int) -> list[str]:
+    processes = math.ceil(count / NODES_PER_PROCESS)
+    # Names unique per N: a node of the previous N still leaving cannot be mistaken for one.
+    names = [f"bench_{count}_n{index:02d}" for index in range(count)]
+    for process in range(processes):
+        echo = ["--echo"] if process == 0 else []
+        launch.start_module(
+            f"worker{process}", "benchmarks.activation", "worker", *names[process::processes], *echo
+        )
+    return names
+
+
+def _wait_for_lines(launch: Any, text: str, count: int, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    seen = 0
+    while seen < count:
+        line = launch.next_line(deadline - time.monotonic())
+        if line is None:
+            raise TimeoutError(f"only {seen} of {count} processes printed {text!r}")
+        if line.text == text:
+            seen += 1
+        elif "Error" in line.text or "Traceback" in line.text:
+            print(f"  {line.process}: {line.text}", file=sys.stderr)
+
+
+def _collect_apply_times(launch: Any) -> dict[str, dict[int, float]]:
+    for name in list(launch.processes):
+        if name.startswith("worker"):
+            launch.stop(name)
+    applied: dict[str, dict[int, float]] = {}
+    while (line := launch.next_line(0.5)) is not None:
+        if line.text.startswith('{"applied"'):
+            for node, times in json.loads(line.text)["applied"].items():
+                applied[node] = {int(epoch): t for epoch, t in times.items()}
+    return applied
+
+
+def measure(count: int, caller: Caller, launch: Any, rounds: int) -> dict[str, list[float]]:
+    """Seconds per activation, per series, for `count` nodes (workers started and stopped)."""
+    names = _start_workers(launch, count)
+    _wait_for_lines(launch, "ready", math.ceil(count / NODES_PER_PROCESS))
+    caller.wait_for_nodes(names)
+    caller.spin_until(lambda: caller.ping.get_subscription_count() > 0)
+    for _ in range(20):  # warm the echo path up; its late replies cannot match later pings
+        caller.round_trip()
+    times: dict[str, list[float]] = {series: [] for series in SERIES}
+    async_epochs: list[int] = []
+    active = "Outdoor" if list(caller.client.query().active_layers) == ["Outdoor"] else "Indoor"
+    for index in range(rounds):
+        for mode in MODES if index % 2 else reversed(MODES):
+            target = CONTEXTS[1 - CONTEXTS.index(active)]
+            if mode == "asynchronous":
+                result, _ = caller.activate(target, synchronous=False)
+                async_epochs.append(result.epoch)
+                caller.spin_until(
+                    lambda e=result.epoch: all(caller.applied_epoch.get(n, -1) >= e for n in names)
+                )
+                active = target
+            elif mode == "synchronous":
+                result, round_trip = caller.activate(target, synchronous=True)
+                times["synchronous"].append(result.elapsed)
+                times["synchronous, caller"].append(round_trip)
+                active = target
+            elif mode == FLOOR:
+                for _ in range(PINGS_PER_ROUND):
+                    times[FLOOR].append(caller.round_trip())
+                    time.sleep(0.005)
+            else:
+                times[mode].append(caller.set_parameters(target, parallel="parallel" in mode))
+            time.sleep(0.005)  # a pause between measurements, as between real context switches
+    applied = _collect_apply_times(launch)
+    for epoch in async_epochs:
+        stamps = [applied.get(name, {}).get(epoch) for name in names]
+        published = caller.published.get(epoch)
+        if published is None or None in stamps:
+            continue  # a lost sample (reported as lost), never a guessed one
+        times["asynchronous"].append(max(s for s in stamps if s is not None) - published)
+    caller.applied_epoch.clear()
+    return times
+
+
+def run(node_counts: tuple[int, ...] = NODE_COUNTS, rounds: int = ROUNDS) -> list[dict[str, Any]]:
+    import rclpy
+    from examples.launch import Launch
+
+    domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID))
+    rows: list[dict[str, Any]] = []
+    with Launch(domain, grace=5.0) as launch:
+        launch.start_module("manager", "contextros", "manager", "--recovery-window", "0.3")
+        rclpy.init(domain_id=domain)
+        caller = Caller()
+        try:
+            for count in node_counts:
+                print(f"  activation: {count} nodes", flush=True)
+                times = measure(count, caller, launch, rounds)
+                for series in SERIES:
+                    attempts = rounds * (PINGS_PER_ROUND if series == FLOOR else 1)
+                    rows.append(_row(series, count, times[series], attempts, rounds))
+        finally:
+            caller.close()
+            rclpy.try_shutdown()
+    return rows
+
+
+def _row(
+    series: str, count: int, samples: list[float], attempted: int, rounds: int
+) -> dict[str, Any]:
+    ordered = sorted(s for s in samples if not math.isnan(s))
+    return {
+        "series": series,
+        "nodes": count,
+        "processes": math.ceil(count / NODES_PER_PROCESS),
+        "rounds": rounds,
+        "median_ms": statistics.median(ordered) * 1000 if ordered else math.nan,
+        "p90_ms": ordered[int(0.9 * (len(ordered) - 1))] * 1000 if ordered else math.nan,
+        "samples": len(ordered),
+        "lost": attempted - len(ordered),
+    }
+
+
+# -- the report -------------------------------------------------------------------------------
+
+
+def _median(rows: list[dict[str, Any]], series: str, nodes: int) -> float:
+    for row in rows:
+        if row["series"] == series and row["nodes"] == nodes:
+            return float(row["median_ms"])
+    return math.nan
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    counts = sorted({row["nodes"] for row in rows})
+    if not counts:
+        return "Not measured."
+    floor = _median(rows, FLOOR, counts[0])
+    header = "| series: median ms (p90) | " + " | ".join(f"N={n}" for n in counts)
+    processes = " | ".join(str(math.ceil(n / NODES_PER_PROCESS)) for n in counts)
+    lines = [
+        f"Layout: the manager, the caller, and N nodes in ceil(N/{NODES_PER_PROCESS}) worker "
+        f"processes of up to {NODES_PER_PROCESS} nodes (one single-threaded executor each); "
+        f"{rows[0]['rounds']} measurements per series and N "
+        f"({rows[0]['rounds'] * PINGS_PER_ROUND} for the floor).",
+        "",
+        header + " |",
+        "|---|" + "---:|" * len(counts),
+        f"| worker processes | {processes} |",
+    ]
+    for series in SERIES:
+        cells = []
+        for count in counts:
+            row = next(r for r in rows if r["series"] == series and r["nodes"] == count)
+            lost = f", {row['lost']} lost" if row["lost"] else ""
+            cells.append(f"{row['median_ms']:.2f} ({row['p90_ms']:.2f}{lost})")
+        lines.append(f"| {series} | " + " | ".join(cells) + " |")
+    sync_64, sync_1 = _median(rows, "synchronous", 64), _median(rows, "synchronous", 1)
+    async_64, async_1 = _median(rows, "asynchronous", 64), _median(rows, "asynchronous", 1)
+    parallel_64 = _median(rows, "parameter, parallel", 64)
+    checks = [
+        ("synchronous at N=64 / parameter, parallel at N=64", sync_64 / parallel_64, 0.5),
+        ("synchronous at N=1 / floor at N=1", sync_1 / floor, 2.0),
+        ("synchronous N=64 / N=1", sync_64 / sync_1, 8.0),
+        ("asynchronous N=64 / N=1", async_64 / async_1, 8.0),
+    ]
+    lines += ["", "| target | measured | target | verdict |", "|---|---:|---:|---|"]
+    for name, value, target in checks:
+        verdict = "met" if value <= target else "MISSED"
+        lines.append(f"| {name} | {value:.2f} | <= {target:g} | {verdict} |")
+    lines += ["", f"Paper, Fig. 9: {PAPER_FIG9}."]
+    return "\n".join(lines)
+
+
+def plot(rows: list[dict[str, Any]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, axes = plt.subplots(figsize=(7, 4.5))
+    for series in SERIES:
+        points = sorted((r["nodes"], r["median_ms"]) for r in rows if r["series"] == series)
+        axes.plot([n for n, _ in points], [m for _, m in points], marker="o", label=series)
+    axes.set_xscale("log", base=2)
+    axes.set_yscale("log")
+    axes.set_xticks(list(NODE_COUNTS), [str(n) for n in NODE_COUNTS])
+    axes.set_xlabel("nodes")
+    axes.set_ylabel("time until every node has the new layers [ms] (median)")
+    axes.set_title("Layer activation time vs number of nodes")
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=120)
+    plt.close(figure)
+
+
+def main(argv: list[str]) -> int:
+    """`worker NAME... [--echo]` hosts nodes; else a (quick) run: `--nodes 1 8 --rounds 10`."""
+    if argv[:1] == ["worker"]:
+        parser = argparse.ArgumentParser(description="activation benchmark: a worker process")
+        parser.add_argument("names", nargs="*")
+        parser.add_argument("--echo", action="store_true")
+        worker_args = parser.parse_args(argv[1:])
+        worker(worker_args.names, worker_args.echo)
+        return 0
+    parser = argparse.ArgumentParser(description="activation benchmark")
+    parser.add_argument("--nodes", type=int, nargs="+", default=list(NODE_COUNTS))
+    parser.add_argument("--rounds", type=int, default=ROUNDS)
+    args = parser.parse_args(argv)
+    rows = run(tuple(args.nodes), args.rounds)
+    print(markdown(rows))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
