@@ -9,6 +9,8 @@ fixtures (characters inserted, deleted, lines duplicated or swapped). For each i
 
 from __future__ import annotations
 
+import warnings
+
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -127,6 +129,11 @@ PIECES = [
     "\x00",
     "\r",
     "\x0c",
+    "\r\n",
+    "\u2028",
+    "\x85",
+    "\x1c",
+    "\ufeff",
     "é",
     "proceed",
     "base:\n",
@@ -173,8 +180,10 @@ def exercise(text: str) -> None:
         assert error.diagnostics[0].is_error
         return
     assert not any(d.is_error for d in diagnostics)
-    compile(compiled.text, "fuzz.py", "exec")  # the written module
-    compiled.code()  # and the one the loader runs, positions mapped to the layer file
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Python's warnings were reported as diagnostics
+        compile(compiled.text, "fuzz.py", "exec")  # the written module
+        compiled.code()  # and the one the loader runs, positions mapped to the layer file
 
 
 @FUZZ

@@ -233,3 +233,12 @@ def test_parse_raises_every_error_as_one_layer_syntax_error() -> None:
         "          ^",
         "(and 1 more error)",
     ]
+
+
+def test_only_python_newlines_end_lines() -> None:
+    # A form feed and a line separator inside a string are not line breaks for Python.
+    text = 'NOTE = "a\u2028b\x0cc"\r\nlayer A:\r\n    def f():\r\n        return (1 +)\r\n'
+    _, found = parse_with_diagnostics(text, "t.layers")
+    assert [(d.line, d.col) for d in found] == [(4, 20)]
+    tree = parse('NOTE = "a\u2028b"\nlayer A:\n    def f(): ...\n')
+    assert tree.header == 'NOTE = "a\u2028b"'

@@ -22,7 +22,7 @@ from pathlib import Path
 from types import CodeType
 
 from contextros.language.checker import checked
-from contextros.language.diagnostics import Diagnostic
+from contextros.language.diagnostics import Diagnostic, source_lines
 from contextros.language.syntax import Function, Hook, LayerDecl, LayerFile, Ref, SourceLine
 
 # Bumped whenever the generated code changes shape: it invalidates the loader's cache.
@@ -55,9 +55,9 @@ class CompiledLayers:
     def code(self) -> CodeType:
         """The module's code, with `co_filename` and every position in the `.layers` file."""
         tree = ast.parse(self.text, filename=f"<compiled {self.path}>")
-        source_lines = self.layer_file.source.splitlines() if self.layer_file else []
+        lines = source_lines(self.layer_file.source) if self.layer_file else []
         for node in ast.walk(tree):
-            _relocate(node, self.origins, source_lines)
+            _relocate(node, self.origins, lines)
         return compile(tree, self.path, "exec", dont_inherit=True)
 
 
@@ -130,7 +130,7 @@ class _Emitter:
 
     def module(self) -> None:
         self.preamble()
-        lines = self.file.source.splitlines()[: self.file.header_lines]
+        lines = source_lines(self.file.source)[: self.file.header_lines]
         while lines and not lines[-1].strip():
             lines.pop()
         for number, text in enumerate(lines, start=1):

@@ -8,10 +8,13 @@ as `LayerSyntaxError`; warnings point at the layer interaction problem and do no
 from __future__ import annotations
 
 import enum
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 from contextros.errors import LayerError
+
+_NEWLINE = re.compile(r"\r\n|\r|\n")
 
 
 class Severity(str, enum.Enum):
@@ -100,12 +103,24 @@ class LayerTargetError(LayerLanguageError):
     """
 
 
+def source_lines(source: str) -> list[str]:
+    """The lines of a source as Python counts them: only \\n, \\r\\n and \\r end a line.
+
+    (`str.splitlines` also splits at form feeds, \\x1c-\\x1e, \\x85 and \\u2028/9, which
+    Python allows inside lines and strings: line numbers would drift.)
+    """
+    lines = _NEWLINE.split(source)
+    if lines and lines[-1] == "":
+        lines.pop()
+    return lines
+
+
 class DiagnosticSink:
     """Collects diagnostics for one source text, quoting lines as it goes."""
 
     def __init__(self, path: str, source: str) -> None:
         self.path = path
-        self.lines = source.splitlines()
+        self.lines = source_lines(source)
         self.items: list[Diagnostic] = []
 
     def quote(self, line: int) -> str:

@@ -18,7 +18,12 @@ import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
-from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
+from contextros.language.diagnostics import (
+    Diagnostic,
+    DiagnosticSink,
+    LayerSyntaxError,
+    source_lines,
+)
 from contextros.language.syntax import (
     BaseBlock,
     Function,
@@ -136,7 +141,7 @@ class _Parser:
         self.source = source
         self.path = path
         self.sink = DiagnosticSink(path, source)
-        self.lines = source.splitlines()
+        self.lines = source_lines(source)
 
     # -- file level ---------------------------------------------------------------------
 
