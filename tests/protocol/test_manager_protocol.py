@@ -328,3 +328,22 @@ def test_registry_shows_layers_nodes_and_laggards() -> None:
     assert lagging == {"/b", "/c"}
     assert {d.name for d in view.layers} == {d.name for d in ALL_LAYERS}
     assert next(d for d in view.layers if d.name == "Indoor").group == "location"
+
+
+def test_recovery_is_prolonged_while_participants_keep_appearing() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a", 7, ("Night",)), 0.9)
+    assert states(manager.tick(1.0)) == [], "a newcomer just appeared: keep listening"
+    manager.receive_status(report("/b", 9, ("Indoor",)), 1.1)
+    (state,) = states(manager.tick(1.5))
+    assert state.epoch == 10 and state.active == ("Indoor",)
+
+
+def test_recovery_ends_within_three_windows_whatever_happens() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    for step in range(1, 40):
+        now = step * 0.1
+        manager.receive_status(report(f"/n{step}"), now)
+        if states(manager.tick(now)):
+            break
+    assert not manager.recovering and now <= 3 * SETTINGS.recovery_window + 0.1

@@ -62,3 +62,15 @@ def wait_registry(
                 f"active {list(registry.active_layers)}, participants {nodes}"
             )
         time.sleep(0.05)
+
+
+def settle(client: LayerClient, *layers: str) -> Any:
+    """Make exactly `layers` active (in this order), whatever earlier tests left behind."""
+    current = list(client.query().active_layers)
+    if current != list(layers):
+        cleared = client.request([], current, synchronous=True, timeout=5)
+        assert cleared.success, cleared.message
+        if layers:
+            result = client.request(layers, synchronous=True, timeout=5)
+            assert result.success, result.message
+    return client.query()

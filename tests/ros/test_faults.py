@@ -68,9 +68,12 @@ def test_restarted_manager_keeps_epochs_monotonic_and_the_active_set(
     assert list(third.active_layers) == ["Outdoor", "Night", "Gps"]
     assert "recovered from /r" in third.reason
 
+    wait_registry(client, lambda r: len(r.participants) == 3, what="all participants back")
     after = client.request(["Indoor"], ["Gps"], synchronous=True, timeout=5)
     assert after.success and after.epoch == third.epoch + 1
+    assert after.acknowledged == ("/r1", "/r2", "/r3")
     for child in system.participants.values():
+        child.wait_applied(after.epoch)
         epochs = [e["epoch"] for e in child.applied()]
         assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name}: {epochs}"
         assert epochs[-1] == after.epoch

@@ -15,7 +15,7 @@ import pytest
 
 from contextros.ros import LayerClient
 from tests.ros.processes import CLIENT_SCRIPT, ProcessGroup
-from tests.ros.system import RunningSystem, start_system, wait_registry
+from tests.ros.system import RunningSystem, settle, start_system, wait_registry
 
 NODES = ("/p1", "/p2", "/p3")
 
@@ -32,7 +32,7 @@ def system(client: LayerClient) -> Iterator[RunningSystem]:
 def test_synchronous_activation_is_acknowledged_by_every_participant(
     system: RunningSystem, client: LayerClient
 ) -> None:
-    client.request(["Indoor"], ["Night", "Outdoor"], synchronous=True, timeout=5)
+    settle(client, "Indoor")
     result = client.request(["Night"], synchronous=True, timeout=5, reason="dusk")
     assert result.success, result.message
     assert result.acknowledged == NODES and result.not_acknowledged == ()
@@ -69,13 +69,14 @@ def test_unknown_layer_is_rejected_by_name_and_nothing_changes(
 def test_relation_violation_is_rejected_and_nothing_changes(
     system: RunningSystem, client: LayerClient, on: list[str], off: list[str], culprit: str
 ) -> None:
-    before = client.query()
+    before = settle(client, "Indoor")
     result = client.request(on, off, synchronous=True, timeout=5)
     assert not result.success and culprit in result.message, result.message
     assert client.query().epoch == before.epoch
 
 
 def test_switch_is_one_atomic_state_everywhere(system: RunningSystem, client: LayerClient) -> None:
+    settle(client, "Night", "Indoor")
     result = client.request(["Outdoor", "Gps"], ["Indoor"], synchronous=True, timeout=5)
     assert result.success, result.message
     for child in system.participants.values():
@@ -102,6 +103,7 @@ def test_late_joiner_gets_the_current_state_at_once(
 def test_critical_section_delays_the_acknowledgement(
     system: RunningSystem, client: LayerClient
 ) -> None:
+    settle(client, "Night")
     p1 = system.participants["p1"]
     p1.send("critical 1.5")
     p1.wait_for(lambda events: any(e["event"] == "critical-open" for e in events), 5, "critical")
@@ -145,5 +147,8 @@ def test_rapid_activations_from_two_clients_converge_without_regression(
         epochs = [e["epoch"] for e in child.applied()]
         assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name} regressed"
         assert child.applied()[-1]["active"] == list(final.active_layers)
-    registry = client.query()
-    assert all(not p.lagging for p in registry.participants)
+    wait_registry(
+        client,
+        lambda r: all(p.applied_epoch == final.epoch for p in r.participants),
+        what="every participant's acknowledgement of the final epoch",
+    )

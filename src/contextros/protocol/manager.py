@@ -42,8 +42,11 @@ class ManagerSettings:
     # A participant heartbeats every 0.25 s by default, so 2 s of silence means it is gone.
     liveness_timeout: float = 2.0
     default_timeout: float = 5.0
-    # How long a (re)started manager listens to participants before deciding its first state.
+    # How long a (re)started manager listens to participants before deciding its first state;
+    # prolonged while participants keep appearing (discovery is slower on a loaded machine),
+    # by `recovery_quiet` after the last newcomer, up to three windows in all.
     recovery_window: float = 1.0
+    recovery_quiet: float = 0.3
     manager_id: str = ""
     keep_dropped: int = 32
 
@@ -104,6 +107,7 @@ class ManagerProtocol:
         self._queued: list[tuple[ActivationCommand, float]] = []
         self._dropped: deque[str] = deque(maxlen=self.settings.keep_dropped)
         self._recovering_until: float | None = now + self.settings.recovery_window
+        self._recovery_limit = now + 3 * self.settings.recovery_window
         # Until a client decides something, the newest configuration a participant reports
         # is the truth (the manager restarted without a state file, or with an older one).
         self._decided_here = False
@@ -163,6 +167,11 @@ class ManagerProtocol:
         known = self._participants.get(report.node)
         if known is None or known.report.incarnation != report.incarnation:
             actions.append(ParticipantJoined(report.node, restarted=known is not None))
+            if self._recovering_until is not None:
+                self._recovering_until = min(
+                    max(self._recovering_until, now + self.settings.recovery_quiet),
+                    self._recovery_limit,
+                )
         self._participants[report.node] = ParticipantRecord(report, last_heard=now)
         if not self.recovering and report.applied_epoch > self._state.epoch:
             actions += self._overtake(report, now)

@@ -9,6 +9,7 @@ replies (see `_DeferredResponses`).
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import time
 import uuid
@@ -124,13 +125,8 @@ class LayerManagerNode(Node):
     ) -> None:
         super().__init__(node_name, **node_options)
         self.manager_id = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
-        base = settings or ManagerSettings()
-        self.settings = ManagerSettings(
-            liveness_timeout=base.liveness_timeout,
-            default_timeout=base.default_timeout,
-            recovery_window=base.recovery_window,
-            manager_id=self.manager_id,
-            keep_dropped=base.keep_dropped,
+        self.settings = dataclasses.replace(
+            settings or ManagerSettings(), manager_id=self.manager_id
         )
         self.state_file = StateFile(state_file) if state_file else None
         saved = self.state_file.load() if self.state_file else None

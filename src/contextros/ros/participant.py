@@ -165,14 +165,16 @@ class ContextParticipant:
         installed = tuple(layer.name for layer in active_layers()) == state.active
         if error is not None and installed:
             self.node.get_logger().warning(f"epoch {state.epoch} applied, but {error}")
+        if state.epoch <= self.protocol.applied_epoch:
+            return  # a deferred older switch settling after a newer one applied directly
         if applied or installed:
             self.state = state
             self._run(self.protocol.applied(state, now))
             for listener in list(self._listeners):
                 try:
                     listener(state)
-                except Exception as error:  # a listener must not stop the node
-                    self.node.get_logger().error(f"state listener {listener!r} failed: {error!r}")
+                except Exception as failure:  # a listener must not stop the node
+                    self.node.get_logger().error(f"state listener {listener!r} failed: {failure!r}")
         else:
             why = str(error) if error else "the switch was dropped"
             self.node.get_logger().error(f"cannot apply epoch {state.epoch}: {why}")
