@@ -242,3 +242,24 @@ def test_only_python_newlines_end_lines() -> None:
     assert [(d.line, d.col) for d in found] == [(4, 20)]
     tree = parse('NOTE = "a\u2028b"\nlayer A:\n    def f(): ...\n')
     assert tree.header == 'NOTE = "a\u2028b"'
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        (
+            "layer __debug__:\n    def f(): ...\n",
+            (1, 7, "'__debug__' cannot be assigned in Python"),
+        ),
+        (
+            "layer A:\n    def __debug__(): ...\n",
+            (2, 9, "'__debug__' cannot be assigned in Python"),
+        ),
+        (
+            "layer \ufb01:\n    def f(): ...\n",
+            (1, 7, "'\ufb01' is not in the normal form Python uses for identifiers (NFKC)"),
+        ),
+    ],
+)
+def test_names_python_would_refuse_or_rename(text: str, expected: tuple[int, int, str]) -> None:
+    assert only_error(text) == expected

@@ -483,6 +483,11 @@ class _Parser:
             if node is not None:  # Python accepted it, yet it is not `def name(...)`
                 self.sink.error("expected a method definition", at.line, at.col)
             return None
+        for part in (owner, name):
+            problem = name_problem(part) if part else ""
+            if problem:
+                self.sink.error(f"{part!r} {problem}", at.line, at.col)
+                return None
         if len(node.body) != 1 or not isinstance(
             node.body[0], (ast.FunctionDef, ast.AsyncFunctionDef)
         ):
