@@ -398,3 +398,32 @@ def test_an_unreadable_file_is_an_error_not_a_crash(tmp_path: object) -> None:
     (found,) = check_file("/nonexistent/x.layers")
     assert (found.is_error, found.line, found.col) == (True, 1, 1)
     assert "cannot read the layer file" in found.message
+
+
+def test_proceed_in_a_method_without_the_instance() -> None:
+    assert only(
+        """\
+        class Robot:
+            def go(self, speed): ...
+        layer A:
+            def Robot.go(self, speed):
+                return 1 + proceed(speed)
+        """
+    ) == (
+        "warning",
+        5,
+        20,
+        "proceed() in Robot.go does not pass the instance first: the next implementation is "
+        "called with the method's arguments, as proceed(self, ...)",
+    )
+    assert (
+        diagnostics(
+            """\
+            class Robot: ...
+            layer A:
+                def Robot.go(this, *args):
+                    return proceed(this, *args) or proceed(*args)
+            """
+        )
+        == []
+    )

@@ -178,3 +178,17 @@ def test_an_already_layered_method_is_refined_further(tmp_path: Path) -> None:
     with pytest.raises(LayerTargetError) as caught:
         load(path, name="again_layers_2")
     assert "already layered" in caught.value.message
+
+
+def test_scoped_activation_works_on_compiled_dispatch(
+    load_fixture: Callable[[str], ModuleType],
+) -> None:
+    from contextros import activated
+
+    module = load_fixture("paper_listing1.layers")
+    with activated("Outdoor"):
+        assert module.getPos() == (35.68, 139.69)
+        with activated("Indoor"):
+            assert module.getPos() == (1.0, 2.0)
+    with pytest.raises(NoImplementationError):
+        module.getPos()

@@ -258,6 +258,7 @@ class _Checker:
                 first = first_impl.setdefault(function.key, function)
                 if first is not function:
                     self._compatible(first, function)
+                self._proceed_arguments(function)
                 if function.layer is None and calls_proceed(function):
                     self.sink.warning(
                         f"proceed() in the base implementation of {function.key} has no next "
@@ -294,6 +295,40 @@ class _Checker:
                 function.at.line,
                 function.at.col,
             )
+
+    def _proceed_arguments(self, function: Function) -> None:
+        """`proceed` takes the method's own arguments, the instance first."""
+        if function.owner is None or function.layer is None:
+            return
+        args = function.node.args
+        first = (args.posonlyargs + args.args)[:1]
+        if not first:
+            return
+        for node in ast.walk(function.node):
+            if not (
+                isinstance(node, ast.Call)
+                and isinstance(node.func, ast.Name)
+                and node.func.id == "proceed"
+            ):
+                continue
+            if node.args and isinstance(node.args[0], ast.Starred):
+                continue
+            if node.args and isinstance(node.args[0], ast.Name) and node.args[0].id == first[0].arg:
+                continue
+            line, col = self._position_of(function, node)
+            self.sink.warning(
+                f"proceed() in {function.key} does not pass the instance first: the next "
+                f"implementation is called with the method's arguments, as "
+                f"proceed({first[0].arg}, ...)",
+                line,
+                col,
+            )
+
+    def _position_of(self, function: Function, node: ast.expr) -> tuple[int, int]:
+        """Where a node of a function's parsed text is in the layer file."""
+        index = min(max(node.lineno, 1), len(function.lines)) - 1
+        line = function.lines[index]
+        return line.line, line.column(node.col_offset) + 1
 
     def _decorators(self, function: Function) -> None:
         for decorator in function.node.decorator_list:
