@@ -7,11 +7,15 @@ decisive configuration too, as they must: it is one process).
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Callable, Sequence
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
+
+RCLError = rclpy_implementation.RCLError
 
 
 def spin_nodes(
@@ -26,8 +30,6 @@ def spin_nodes(
     ExternalShutdownException); nodes are destroyed on the way out, so context nodes say
     goodbye to the manager when they still can.
     """
-    import time
-
     executor = SingleThreadedExecutor()
     for node in nodes:
         executor.add_node(node)
@@ -41,6 +43,10 @@ def spin_nodes(
             executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RCLError:
+        # A signal shut the context down between two spins: same as above.
+        if rclpy.ok():
+            raise
     finally:
         for node in nodes:
             with contextlib.suppress(Exception):
