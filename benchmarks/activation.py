@@ -31,8 +31,12 @@ import os
 import statistics
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from contextros.protocol import LayerState
 
 NODE_COUNTS = (1, 2, 4, 8, 12, 16, 32, 64)
 NODES_PER_PROCESS = 8
@@ -80,6 +84,7 @@ def worker(names: list[str], echo: bool) -> None:
     """Host context nodes (and the floor's echo) until interrupted, then print apply times."""
     import rclpy
     from rcl_interfaces.msg import SetParametersResult
+    from rclpy.node import Node
     from std_msgs.msg import UInt64
 
     from contextros.language import load
@@ -97,14 +102,19 @@ def worker(names: list[str], echo: bool) -> None:
     # Without rclpy's own signal handler, Ctrl-C reaches spin_nodes as KeyboardInterrupt while
     # the context is still up, so every node can still tell the manager it leaves.
     rclpy.init(signal_handler_options=rclpy.signals.SignalHandlerOptions.NO)
-    nodes = []
+
+    def recorder(log: dict[int, float]) -> Callable[[LayerState], None]:
+        def record(state: LayerState) -> None:
+            log[state.epoch] = time.time()
+
+        return record
+
+    nodes: list[Node] = []
     for name in names:
         node = ContextNode(name, layers=location.__layers__)
         node.add_on_set_parameters_callback(check)
         node.declare_parameter("location", "Indoor")
-        node.context_participant.add_listener(
-            lambda state, log=applied[name]: log.__setitem__(state.epoch, time.time())
-        )
+        node.context_participant.add_listener(recorder(applied[name]))
         nodes.append(node)
     if echo:
         echo_node = rclpy.create_node("bench_echo")
@@ -125,29 +135,24 @@ class Caller:
 
     def __init__(self) -> None:
         import rclpy
-        from contextros_interfaces.msg import LayerState, ParticipantStatus
+        from contextros_interfaces.msg import LayerState
         from std_msgs.msg import UInt64
 
-        from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, LayerClient
+        from contextros.ros import STATE_QOS, STATE_TOPIC, LayerClient
 
         self.rclpy = rclpy
         self.node = rclpy.create_node("bench_caller")
         self.client = LayerClient(self.node, requester="bench")
         self.published: dict[int, float] = {}  # epoch -> stamp of its state
-        self.applied_epoch: dict[str, int] = {}
         self.pongs: dict[int, float] = {}
         self.sequence = 0  # of the pings; a pong is matched to its ping by it
         self.node.create_subscription(LayerState, STATE_TOPIC, self.on_state, STATE_QOS)
-        self.node.create_subscription(ParticipantStatus, STATUS_TOPIC, self.on_status, STATUS_QOS)
         self.ping = self.node.create_publisher(UInt64, "bench/ping", 10)
         self.node.create_subscription(UInt64, "bench/pong", self.on_pong, 10)
         self.parameter_clients: list[Any] = []
 
     def on_state(self, msg: Any) -> None:
         self.published[msg.epoch] = msg.stamp.sec + msg.stamp.nanosec * 1e-9
-
-    def on_status(self, msg: Any) -> None:
-        self.applied_epoch[msg.node.lstrip("/")] = msg.applied_epoch
 
     def on_pong(self, msg: Any) -> None:
         self.pongs[msg.data] = time.perf_counter()
@@ -177,9 +182,19 @@ class Caller:
         for client in self.parameter_clients:
             if not client.wait_for_service(timeout_sec=max(0.1, deadline - time.monotonic())):
                 raise TimeoutError(f"no parameter service {client.srv_name}")
-        # Every node has applied the current state (the caller heard its status).
-        epoch = self.client.query().epoch
-        self.spin_until(lambda: all(self.applied_epoch.get(n, -1) >= epoch for n in names))
+        self.wait_until_applied(self.client.query().epoch, len(names))
+
+    def wait_until_applied(self, epoch: int, count: int) -> None:
+        """Until the manager knows every node applied `epoch`: asked sparingly, as the caller
+        must not load the machine while the nodes work (it does not follow their statuses)."""
+        time.sleep(0.002 + 0.001 * count)
+        deadline = time.monotonic() + 10.0
+        while time.monotonic() < deadline:
+            participants = self.client.query().participants
+            if len(participants) >= count and all(p.applied_epoch >= epoch for p in participants):
+                return
+            time.sleep(0.005)
+        raise TimeoutError(f"epoch {epoch} not applied by all {count} nodes within 10 s")
 
     def activate(self, context: str, synchronous: bool) -> tuple[Any, float]:
         other = CONTEXTS[1 - CONTEXTS.index(context)]
@@ -281,9 +296,7 @@ def measure(
             if mode == "asynchronous":
                 result, _ = caller.activate(target, synchronous=False)
                 async_epochs.append(result.epoch)
-                caller.spin_until(
-                    lambda e=result.epoch: all(caller.applied_epoch.get(n, -1) >= e for n in names)
-                )
+                caller.wait_until_applied(result.epoch, count)
                 active = target
             elif mode == "synchronous":
                 result, round_trip = caller.activate(target, synchronous=True)
@@ -304,7 +317,6 @@ def measure(
         if published is None or None in stamps:
             continue  # a lost sample (reported as lost), never a guessed one
         times["asynchronous"].append(max(s for s in stamps if s is not None) - published)
-    caller.applied_epoch.clear()
     return times
 
 

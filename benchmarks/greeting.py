@@ -79,7 +79,8 @@ def greet_times(calls: int = CALLS) -> dict[str, list[float]]:
     from contextros import set_active
 
     domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID))
-    rclpy.init(domain_id=domain)
+    # Both nodes are called "greeting"; without rosout they do not compete for its publisher.
+    rclpy.init(args=["--ros-args", "--disable-rosout-logs"], domain_id=domain)
     plain = plain_node.GreetingNode()
     context = context_node.GreetingNode()
     plain.set_parameters([Parameter("city", value="Tokyo")])

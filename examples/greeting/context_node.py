@@ -31,13 +31,12 @@ class GreetingNode(ContextNode):
         if active_layers():  # no city yet: nothing to say
             self.greet()
 
-    def greet(self, now: datetime | None = None) -> str:
+    def greet(self, now: datetime | None = None) -> None:
         local = (now or datetime.now(timezone.utc)).astimezone(greeting.zone())
         part_of_day = 0 if 5 <= local.hour < 12 else 1 if local.hour < 18 else 2
         line = f"{local:%H:%M} {local.tzname()} {greeting.words(part_of_day)}"
         self.publisher.publish(String(data=line))
         print(line, flush=True)
-        return line
 
 
 def main() -> None:

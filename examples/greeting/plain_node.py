@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 from datetime import datetime, timedelta, timezone
+from typing import Any
 
 import rclpy
 from rcl_interfaces.msg import SetParametersResult
@@ -27,14 +28,14 @@ class GreetingNode(Node):
         self.publisher = self.create_publisher(String, "greeting", 10)
         self.timer = self.create_timer(1.0, self.greet)
 
-    def check_city(self, parameters: list[Parameter]) -> SetParametersResult:
+    def check_city(self, parameters: list[Parameter[Any]]) -> SetParametersResult:
         for parameter in parameters:
             if parameter.name == "city" and parameter.value not in CITIES:
                 reason = f"unknown city {parameter.value!r}; known: {', '.join(CITIES)}"
                 return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
-    def greet(self, now: datetime | None = None) -> str:
+    def greet(self, now: datetime | None = None) -> None:
         city = self.get_parameter("city").value
         if city == "Tokyo":
             zone = timezone(timedelta(hours=9), "JST")
@@ -49,7 +50,6 @@ class GreetingNode(Node):
         line = f"{local:%H:%M} {local.tzname()} {words}"
         self.publisher.publish(String(data=line))
         print(line, flush=True)
-        return line
 
 
 def main() -> None:
