@@ -188,3 +188,19 @@ def test_load_fixture_helper_works_with_the_paper_listing(
         module = load_fixture("paper_listing1.layers")
     activate("Outdoor")
     assert module.getPos().x == 35.68  # type: ignore[attr-defined]
+
+
+def test_loading_the_same_unchanged_file_again_returns_the_same_module(tmp_path: Path) -> None:
+    path = tmp_path / "shared_modes.layers"
+    path.write_text(TWO_LAYERS.format(version=1))
+    try:
+        first = load(path)
+        assert load(path) is first  # like import: two users of one layer file share it
+        assert load(path, reload=True) is not first
+        path.write_text(TWO_LAYERS.format(version=7))
+        changed = load(path)
+        assert changed.VERSION == 7
+        assert load(path, name="shared_modes_elsewhere") is not changed
+    finally:
+        sys.modules.pop("shared_modes", None)
+        sys.modules.pop("shared_modes_elsewhere", None)

@@ -45,6 +45,14 @@ def code_of(path: str | os.PathLike[str]) -> CodeType:
     Raises `LayerSyntaxError` for a file with errors; warns `LayerInteractionWarning`
     for each checker warning when it compiles.
     """
+    return _code_and_digest(path)[0]
+
+
+def _digest(path: str) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _code_and_digest(path: str | os.PathLike[str]) -> tuple[CodeType, str]:
     source_path = os.path.abspath(path)
     data = Path(source_path).read_bytes()
     stat = os.stat(source_path)
@@ -52,7 +60,7 @@ def code_of(path: str | os.PathLike[str]) -> CodeType:
     cache = cache_path(source_path)
     cached = _read_cache(cache, source_path, stat, digest)
     if cached is not None:
-        return cached
+        return cached, digest.hex()
     compiled = compile_source(data.decode("utf-8"), source_path)
     for diagnostic in compiled.warnings:
         # Attributed to the layer file's line, like Python's own SyntaxWarnings.
@@ -61,7 +69,7 @@ def code_of(path: str | os.PathLike[str]) -> CodeType:
         )
     code = compiled.code()
     _write_cache(cache, source_path, stat, digest, code)
-    return code
+    return code, digest.hex()
 
 
 def _header(path: str, stat: os.stat_result, digest: bytes) -> bytes:
@@ -123,8 +131,9 @@ class LayersLoader(importlib.abc.Loader):
         return None
 
     def exec_module(self, module: ModuleType) -> None:
-        code = code_of(self.path)
+        code, digest = _code_and_digest(self.path)
         module.__file__ = self.path
+        module.__layers_sha256__ = digest  # type: ignore[attr-defined]
         exec(code, module.__dict__)
 
 
@@ -135,14 +144,27 @@ def spec_for(name: str, path: str | os.PathLike[str]) -> importlib.machinery.Mod
     return spec
 
 
-def load(path: str | os.PathLike[str], name: str | None = None) -> ModuleType:
+def load(
+    path: str | os.PathLike[str], name: str | None = None, *, reload: bool = False
+) -> ModuleType:
     """Compile (or take from the cache) and execute a layer file; return its module.
 
     The module is registered in `sys.modules` under `name` (default: the file's stem),
-    so the layer file's header can define dataclasses and pickled types. Loading again
-    executes the file again: the layers are redefined, which the core accepts.
+    so the layer file's header can define dataclasses and pickled types. Like `import`,
+    loading the same unchanged file under the same name again returns the same module:
+    several parts of a program can each `load` the layer file they use. A changed file,
+    or `reload=True`, executes it again; its layers are redefined, which the core accepts.
     """
     module_name = name or Path(path).name.removesuffix(SUFFIX)
+    source = os.path.abspath(path)
+    existing = sys.modules.get(module_name)
+    if (
+        not reload
+        and existing is not None
+        and getattr(existing, "__file__", None) == source
+        and getattr(existing, "__layers_sha256__", None) == _digest(source)
+    ):
+        return existing
     spec = spec_for(module_name, path)
     module = importlib.util.module_from_spec(spec)
     previous = sys.modules.get(module_name)
