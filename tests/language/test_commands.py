@@ -80,3 +80,14 @@ def test_compile_refuses_a_file_with_errors(
 def test_compile_of_a_missing_file(capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["compile", "/nonexistent/x.layers"]) == 1
     assert "/nonexistent/x.layers:1:1: error: cannot read the layer file" in capsys.readouterr().err
+
+
+def test_check_searches_directories(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "broken.layers").write_text(BROKEN)
+    shutil.copy(FIXTURES / "cleaner.layers", tmp_path / "cleaner.layers")
+    (tmp_path / "notes.txt").write_text("layer nonsense")
+    assert main(["check", str(tmp_path)]) == 1
+    out = capsys.readouterr().out
+    assert f"{tmp_path / 'sub' / 'broken.layers'}:3:16: error:" in out
+    assert "notes.txt" not in out

@@ -38,14 +38,27 @@ def register(commands: Any) -> None:
         description="Check layer files. Prints 'file:line:col: error|warning: message' with "
         "the line and a caret; exits 1 if any file has errors.",
     )
-    check_parser.add_argument("files", metavar="FILE", nargs="+", help="layer files")
+    check_parser.add_argument(
+        "files",
+        metavar="FILE",
+        nargs="+",
+        help="layer files, or directories to search for *.layers files",
+    )
     check_parser.set_defaults(run=run_check)
+
+
+def _layer_files(names: list[str]) -> list[Path]:
+    found: list[Path] = []
+    for name in names:
+        path = Path(name)
+        found.extend(sorted(path.rglob("*.layers")) if path.is_dir() else [path])
+    return found
 
 
 def run_check(args: argparse.Namespace) -> int:
     errors = 0
-    for name in args.files:
-        for diagnostic in check_file(name):
+    for path in _layer_files(args.files):
+        for diagnostic in check_file(path):
             print(diagnostic.render())
             errors += diagnostic.is_error
     return 1 if errors else 0
