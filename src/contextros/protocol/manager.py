@@ -208,13 +208,14 @@ class ManagerProtocol:
         )
         active = self._state.active
         epoch = self._state.epoch
-        source = "state file" if epoch else "nothing"
+        reason = "recovered from the state file" if epoch else "started with no previous state"
         if newest is not None and newest.applied_epoch > epoch:
-            active, epoch, source = newest.active, newest.applied_epoch, newest.node
+            active, epoch = newest.active, newest.applied_epoch
+            reason = f"recovered from {newest.node}"
         # A fresh epoch even when nothing changed: the epoch is never reused, and lagging
         # participants converge on this snapshot.
         actions: list[ManagerAction] = [
-            self._publish(active, RECOVERY_REQUESTER, f"recovered from {source}", now, epoch)
+            self._publish(active, RECOVERY_REQUESTER, reason, now, epoch)
         ]
         for command, received in self._queued:
             actions += self._execute(command, received)
