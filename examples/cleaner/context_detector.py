@@ -66,6 +66,7 @@ class ContextDetector(Node):
         round_trip = (time.monotonic() - sent) * 1000
         if not result.success:
             print(f"the manager did not switch to {context}: {result.message}", flush=True)
+            time.sleep(0.2)  # then try again, without flooding the manager
             return
         self.announced = context
         print(
