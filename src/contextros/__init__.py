@@ -1,7 +1,7 @@
 """ContextROS: context-oriented programming for ROS 2.
 
-The names here are the COP core (no ROS needed). The layer language lives in
-`contextros.language`, the distributed Layer manager in `contextros.ros`.
+The names here are the COP core and `load` for layer files (no ROS needed). The layer
+language lives in `contextros.language`, the distributed Layer manager in `contextros.ros`.
 """
 
 from contextros.core import (
@@ -32,6 +32,7 @@ from contextros.errors import (
     RelationError,
     UnknownLayerError,
 )
+from contextros.language import load
 
 __version__ = "0.1.0"
 
@@ -57,6 +58,7 @@ __all__ = [
     "deactivated",
     "layer_named",
     "layered",
+    "load",
     "proceed",
     "set_active",
     "subscribe",
