@@ -14,6 +14,11 @@ plain-ROS baselines. Rounds alternate the series below; each switches Indoor <->
 - parameter, one by one / all in parallel: what a ROS developer would otherwise do: the
   caller sets the parameter on every node through its `set_parameters` service, waiting
   for each reply before the next call, or sending all calls at once; until every reply.
+- ... shared participant: the same, but each process has one participant (attached to its
+  first node) instead of one per node. The layer configuration is per process (the COP
+  core's decisive activation is process-wide), so when it applies a state, every node of
+  its process has the new layers at that instant; the manager waits for one
+  acknowledgement per process. Same nodes, same parameter services, fewer messages.
 - floor: one topic round trip between two processes (the caller's ping, an echo node in
   the first worker process, its pong), measured in the same rounds, under the same load.
 
@@ -44,7 +49,15 @@ ROUNDS = 30  # per series and N
 BENCH_DOMAIN_ID = 78
 FLOOR = "floor: topic round trip"
 MODES = ("asynchronous", "synchronous", "parameter, one by one", "parameter, parallel", FLOOR)
-SERIES = (*MODES[:2], "synchronous, caller", *MODES[2:])
+SHARED = ", shared participant"
+SERIES = (
+    "asynchronous",
+    "synchronous",
+    "synchronous, caller",
+    "asynchronous" + SHARED,
+    "synchronous" + SHARED,
+    *MODES[2:],
+)
 PINGS_PER_ROUND = 5
 PAPER_FIG9 = (
     "asynchronous activation time for 1 to 12 nodes, growing with N, on an axis from 0 to 0.1 s"
@@ -53,24 +66,25 @@ PAPER_FIG9 = (
 # Why a target can be missed: the reasons found when measuring (see the per-node costs above).
 WHY_MISSED = {
     "parallel": (
-        "Per node, a synchronous activation costs one state callback and one status message"
-        " (handled by the node's and the manager's rclpy executors), a parallel parameter call"
-        " one request and one response: the same number of Python callbacks, which dominate"
-        " here (applying the layers themselves takes about 40 µs per node). The broadcast"
-        " saves the caller's N requests, not the nodes' and the manager's work. Halving it"
-        " needs fewer messages than nodes: one state subscription and one acknowledgement per"
-        " process rather than per node (the layer configuration is per process anyway)."
+        "With one participant per node, a synchronous activation costs per node one state"
+        " callback and one status message (handled by the node's and the manager's rclpy"
+        " executors), a parallel parameter call one request and one response: the same number"
+        " of Python callbacks, which dominate here (applying the layers themselves takes about"
+        " 40 µs per node). The broadcast saves the caller's N requests, not the nodes' and the"
+        " manager's work. The shared-participant rows show what one acknowledgement per"
+        " process instead of per node buys."
     ),
     "floor": (
         "A synchronous activation is a topic round trip plus work the floor has not: the"
         " manager's handling of the command and of the acknowledgement, and the node's apply"
-        " and status message, each a Python callback of 0.1-0.3 ms in rclpy's executor."
+        " and status message, each a Python callback of 0.1-0.3 ms in rclpy's executor; on"
+        " this shared machine the ratio moved between about 1.5 and 2.5 from run to run."
     ),
     "growth": (
-        "The time grows linearly with N: every node runs its own state callback and sends"
-        " its own acknowledgement, and the manager handles each, about 0.8 ms of CPU per node"
-        " in all on two shared cores, against a fixed 1-2 ms at N=1. The paper's prototype"
-        " grew with N as well."
+        "The time grows linearly with the number of participants: each runs its own state"
+        " callback and sends its own acknowledgement, and the manager handles each, about"
+        " 0.5-0.8 ms of CPU per participant in all on two shared cores, against a fixed 1-2 ms"
+        " at N=1. The paper's prototype grew with N as well."
     ),
 }
 LOCATION_LAYERS = Path(__file__).resolve().parent.parent / "examples/cleaner/location.layers"
@@ -80,8 +94,12 @@ CONTEXTS = ("Indoor", "Outdoor")
 # -- the worker processes ---------------------------------------------------------------------
 
 
-def worker(names: list[str], echo: bool) -> None:
-    """Host context nodes (and the floor's echo) until interrupted, then print apply times."""
+def worker(names: list[str], echo: bool, shared: bool) -> None:
+    """Host context nodes (and the floor's echo) until interrupted, then print apply times.
+
+    `shared`: only the first node is a participant; the others are plain nodes that follow
+    the process-wide layer configuration it applies, at the same instant.
+    """
     import rclpy
     from rcl_interfaces.msg import SetParametersResult
     from rclpy.node import Node
@@ -110,11 +128,16 @@ def worker(names: list[str], echo: bool) -> None:
         return record
 
     nodes: list[Node] = []
-    for name in names:
-        node = ContextNode(name, layers=location.__layers__)
+    for index, name in enumerate(names):
+        node: Node
+        if index == 0 or not shared:
+            node = participant = ContextNode(name, layers=location.__layers__)
+            participant.context_participant.add_listener(recorder(applied[name]))
+        else:
+            node = rclpy.create_node(name)
+            participant.context_participant.add_listener(recorder(applied[name]))
         node.add_on_set_parameters_callback(check)
         node.declare_parameter("location", "Indoor")
-        node.context_participant.add_listener(recorder(applied[name]))
         nodes.append(node)
     if echo:
         echo_node = rclpy.create_node("bench_echo")
@@ -165,16 +188,18 @@ class Caller:
             self.rclpy.spin_once(self.node, timeout_sec=0.01)
         return True
 
-    def wait_for_nodes(self, names: list[str], timeout: float = 60.0) -> None:
+    def wait_for_nodes(
+        self, names: list[str], participants: list[str], timeout: float = 60.0
+    ) -> None:
         from rcl_interfaces.srv import SetParameters
 
         self.client.wait_for_manager(timeout)
-        wanted = set(names)
+        wanted = set(participants)
         deadline = time.monotonic() + timeout
         # Exactly these: the nodes of the previous N must have left, or they would be waited for.
         while wanted != {p.node.lstrip("/") for p in self.client.query().participants}:
             if time.monotonic() > deadline:
-                raise TimeoutError(f"not all {len(names)} context nodes joined in {timeout:g} s")
+                raise TimeoutError(f"not all {len(wanted)} participants joined in {timeout:g} s")
             time.sleep(0.2)
         self.parameter_clients = [
             self.node.create_client(SetParameters, f"/{name}/set_parameters") for name in names
@@ -182,7 +207,7 @@ class Caller:
         for client in self.parameter_clients:
             if not client.wait_for_service(timeout_sec=max(0.1, deadline - time.monotonic())):
                 raise TimeoutError(f"no parameter service {client.srv_name}")
-        self.wait_until_applied(self.client.query().epoch, len(names))
+        self.wait_until_applied(self.client.query().epoch, len(participants))
 
     def wait_until_applied(self, epoch: int, count: int) -> None:
         """Until the manager knows every node applied `epoch`: asked sparingly, as the caller
@@ -240,16 +265,22 @@ class Caller:
         self.node.destroy_node()
 
 
-def _start_workers(launch: Any, count: int, per_process: int) -> list[str]:
+def _start_workers(
+    launch: Any, count: int, per_process: int, shared: bool
+) -> tuple[list[str], list[str]]:
+    """Start the workers; return the names of all nodes and of the participants among them."""
     processes = math.ceil(count / per_process)
-    # Names unique per N: a node of the previous N still leaving cannot be mistaken for one.
-    names = [f"bench_{count}_n{index:02d}" for index in range(count)]
+    # Names unique per run: a node of the previous run still leaving cannot be mistaken for one.
+    variant = "s" if shared else "p"
+    names = [f"bench_{count}{variant}_n{index:02d}" for index in range(count)]
+    participants = []
     for process in range(processes):
-        echo = ["--echo"] if process == 0 else []
-        launch.start_module(
-            f"worker{process}", "benchmarks.activation", "worker", *names[process::processes], *echo
-        )
-    return names
+        own = names[process::processes]
+        participants += own[:1] if shared else own
+        options = ["--echo"] if process == 0 else []
+        options += ["--shared"] if shared else []
+        launch.start_module(f"worker{process}", "benchmarks.activation", "worker", *own, *options)
+    return names, participants
 
 
 def _wait_for_lines(launch: Any, text: str, count: int, timeout: float = 60.0) -> None:
@@ -278,25 +309,29 @@ def _collect_apply_times(launch: Any) -> dict[str, dict[int, float]]:
 
 
 def measure(
-    count: int, caller: Caller, launch: Any, rounds: int, per_process: int
+    count: int, caller: Caller, launch: Any, rounds: int, per_process: int, shared: bool
 ) -> dict[str, list[float]]:
-    """Seconds per activation, per series, for `count` nodes (workers started and stopped)."""
-    names = _start_workers(launch, count, per_process)
+    """Seconds per activation, per series, for `count` nodes (workers started and stopped).
+
+    With `shared`, only the two activation modes are measured (the rest does not change).
+    """
+    names, participants = _start_workers(launch, count, per_process, shared)
     _wait_for_lines(launch, "ready", math.ceil(count / per_process))
-    caller.wait_for_nodes(names)
+    caller.wait_for_nodes(names, participants)
     caller.spin_until(lambda: caller.ping.get_subscription_count() > 0)
     for _ in range(20):  # warm the echo path up; its late replies cannot match later pings
         caller.round_trip()
     times: dict[str, list[float]] = {series: [] for series in SERIES}
     async_epochs: list[int] = []
     active = "Outdoor" if list(caller.client.query().active_layers) == ["Outdoor"] else "Indoor"
+    modes = MODES[:2] if shared else MODES
     for index in range(rounds):
-        for mode in MODES if index % 2 else reversed(MODES):
+        for mode in modes if index % 2 else reversed(modes):
             target = CONTEXTS[1 - CONTEXTS.index(active)]
             if mode == "asynchronous":
                 result, _ = caller.activate(target, synchronous=False)
                 async_epochs.append(result.epoch)
-                caller.wait_until_applied(result.epoch, count)
+                caller.wait_until_applied(result.epoch, len(participants))
                 active = target
             elif mode == "synchronous":
                 result, round_trip = caller.activate(target, synchronous=True)
@@ -317,6 +352,8 @@ def measure(
         if published is None or None in stamps:
             continue  # a lost sample (reported as lost), never a guessed one
         times["asynchronous"].append(max(s for s in stamps if s is not None) - published)
+    if shared:
+        return {mode + SHARED: times[mode] for mode in modes}
     return times
 
 
@@ -337,7 +374,8 @@ def run(
         try:
             for count in node_counts:
                 print(f"  activation: {count} nodes", flush=True)
-                times = measure(count, caller, launch, rounds, per_process)
+                times = measure(count, caller, launch, rounds, per_process, shared=False)
+                times |= measure(count, caller, launch, rounds, per_process, shared=True)
                 for series in SERIES:
                     attempts = rounds * (PINGS_PER_ROUND if series == FLOOR else 1)
                     row = _row(series, count, times[series], attempts, rounds)
@@ -400,6 +438,10 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         lines.append(f"| {series} | " + " | ".join(cells) + " |")
     sync_64, sync_1 = _median(rows, "synchronous", 64), _median(rows, "synchronous", 1)
     async_64, async_1 = _median(rows, "asynchronous", 64), _median(rows, "asynchronous", 1)
+    shared_64 = _median(rows, "synchronous" + SHARED, 64)
+    shared_1 = _median(rows, "synchronous" + SHARED, 1)
+    shared_async_64 = _median(rows, "asynchronous" + SHARED, 64)
+    shared_async_1 = _median(rows, "asynchronous" + SHARED, 1)
     parallel_64 = _median(rows, "parameter, parallel", 64)
     checks = [
         (
@@ -411,6 +453,19 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         ("synchronous at N=1 / floor at N=1", sync_1 / floor, 2.0, "floor"),
         ("synchronous N=64 / N=1", sync_64 / sync_1, 8.0, "growth"),
         ("asynchronous N=64 / N=1", async_64 / async_1, 8.0, "growth"),
+        (
+            "synchronous, shared participant at N=64 / parameter, parallel at N=64",
+            shared_64 / parallel_64,
+            0.5,
+            "parallel",
+        ),
+        ("synchronous, shared participant N=64 / N=1", shared_64 / shared_1, 8.0, "growth"),
+        (
+            "asynchronous, shared participant N=64 / N=1",
+            shared_async_64 / shared_async_1,
+            8.0,
+            "growth",
+        ),
     ]
     lines += ["", "| target | measured | target | verdict |", "|---|---:|---:|---|"]
     missed: list[str] = []
@@ -435,7 +490,8 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     figure, axes = plt.subplots(figsize=(7, 4.5))
     for series in SERIES:
         points = sorted((r["nodes"], r["median_ms"]) for r in rows if r["series"] == series)
-        axes.plot([n for n, _ in points], [m for _, m in points], marker="o", label=series)
+        style = ":" if series == FLOOR else "--" if series.endswith(SHARED) else "-"
+        axes.plot([n for n, _ in points], [m for _, m in points], style, marker="o", label=series)
     axes.set_xscale("log", base=2)
     axes.set_yscale("log")
     axes.set_xticks(list(NODE_COUNTS), [str(n) for n in NODE_COUNTS])
@@ -456,8 +512,9 @@ def main(argv: list[str]) -> int:
         parser = argparse.ArgumentParser(description="activation benchmark: a worker process")
         parser.add_argument("names", nargs="*")
         parser.add_argument("--echo", action="store_true")
+        parser.add_argument("--shared", action="store_true")
         worker_args = parser.parse_args(argv[1:])
-        worker(worker_args.names, worker_args.echo)
+        worker(worker_args.names, worker_args.echo, worker_args.shared)
         return 0
     parser = argparse.ArgumentParser(description="activation benchmark")
     parser.add_argument("--nodes", type=int, nargs="+", default=list(NODE_COUNTS))
