@@ -16,6 +16,8 @@ from contextros.core.linking import (
     copy_function,
     fresh_key,
     link,
+    passing_through,
+    same_parameters,
     trampoline_code,
 )
 from contextros.errors import LayerDefinitionError, NoImplementationError, ProceedError
@@ -48,6 +50,11 @@ class LayeredFunction:
         self._self_key = fresh_key("layered")
         call_head = f"return {self._head_key}(*args, **kwargs)"
         self._direct_code = trampoline_code([call_head], self._freevars, self.qualname)
+        self._signature = stub.__code__
+        parameters, arguments = passing_through(stub.__code__)
+        self._exact_code = trampoline_code(
+            [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
+        )
         self._scoped_code = trampoline_code(
             [
                 f"__contextros_scope = {self._scope_key}.get()",
@@ -126,11 +133,15 @@ class LayeredFunction:
         return following
 
     def install(self, head: Callable[..., Any]) -> None:
-        """Make calls of `stable` run `head`: by taking its code, else via a trampoline."""
+        """Make calls of `stable` run `head`: by taking its code, else via a trampoline
+        (one that passes the parameters straight on when `head` takes the same ones)."""
         if can_take_code_of(self.stable, head):
             self.stable.__code__ = head.__code__  # type: ignore[attr-defined]
+            return
+        self.stable.__globals__[self._head_key] = head
+        if same_parameters(self.stable, self._signature, head):
+            self.stable.__code__ = self._exact_code
         else:
-            self.stable.__globals__[self._head_key] = head
             self.stable.__code__ = self._direct_code
 
     def install_scoped(self, scope: ContextVar[Any]) -> None:

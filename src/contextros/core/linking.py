@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import dis
 import functools
+import inspect
 import itertools
 import sys
 from collections.abc import Callable
@@ -206,15 +207,66 @@ def can_take_code_of(stable: FunctionType, head: object) -> bool:
     )
 
 
-def trampoline_code(body: list[str], freevars: tuple[str, ...], qualname: str) -> CodeType:
-    """Code for `def f(*args, **kwargs): <body>` whose free variables are `freevars`.
+_ARGUMENT_FLAGS = inspect.CO_VARARGS | inspect.CO_VARKEYWORDS
+
+
+def _keyword_only(code: CodeType) -> tuple[str, ...]:
+    start = code.co_argcount
+    return code.co_varnames[start : start + code.co_kwonlyargcount]
+
+
+def same_parameters(stable: FunctionType, signature: CodeType, head: object) -> bool:
+    """Whether `head` takes exactly the parameters (kinds, keyword names, defaults) of
+    `signature` as installed in `stable`, so passing each one through is exact."""
+    if not isinstance(head, FunctionType):
+        return False
+    code = head.__code__
+    return (
+        code.co_argcount == signature.co_argcount
+        and code.co_posonlyargcount == signature.co_posonlyargcount
+        and code.co_flags & _ARGUMENT_FLAGS == signature.co_flags & _ARGUMENT_FLAGS
+        and _keyword_only(code) == _keyword_only(signature)
+        and _same_defaults(head.__defaults__, stable.__defaults__)
+        and _same_kwdefaults(head.__kwdefaults__, stable.__kwdefaults__)
+    )
+
+
+def passing_through(signature: CodeType) -> tuple[str, str]:
+    """(parameter list, argument list) that pass every parameter of `signature` on."""
+    names = signature.co_varnames
+    positional = list(names[: signature.co_argcount])
+    keyword = list(_keyword_only(signature))
+    index = signature.co_argcount + signature.co_kwonlyargcount
+    star = names[index] if signature.co_flags & inspect.CO_VARARGS else None
+    index += 1 if star else 0
+    double_star = names[index] if signature.co_flags & inspect.CO_VARKEYWORDS else None
+    parameters = list(positional)
+    if signature.co_posonlyargcount:
+        parameters.insert(signature.co_posonlyargcount, "/")
+    if star:
+        parameters.append(f"*{star}")
+    elif keyword:
+        parameters.append("*")
+    parameters += keyword
+    arguments = list(positional) + ([f"*{star}"] if star else []) + [f"{k}={k}" for k in keyword]
+    if double_star:
+        parameters.append(f"**{double_star}")
+        arguments.append(f"**{double_star}")
+    return ", ".join(parameters), ", ".join(arguments)
+
+
+def trampoline_code(
+    body: list[str], freevars: tuple[str, ...], qualname: str, parameters: str = "*args, **kwargs"
+) -> CodeType:
+    """Code for `def f(<parameters>): <body>` whose free variables are `freevars`.
 
     The free variables only match the stable function's closure (its __code__ must keep
-    their number); the body never reads them.
+    their number); the body never reads them. Parameter defaults come from the stable
+    function object, not from this code.
     """
     lines = ["def __contextros_outer():"]
     lines += [f"    {name} = None" for name in freevars]
-    lines += ["    def __contextros_dispatch(*args, **kwargs):"]
+    lines += [f"    def __contextros_dispatch({parameters}):"]
     if freevars:
         lines += [f"        {', '.join(freevars)}"]
     lines += [f"        {line}" for line in body]
