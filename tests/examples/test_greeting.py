@@ -8,6 +8,7 @@ import sys
 import time
 from collections.abc import Iterator
 from datetime import datetime, timezone
+from pathlib import Path
 
 import pytest
 from examples.launch import Launch, ros_environment
@@ -129,3 +130,23 @@ def test_in_real_processes_the_layer_manager_switches_the_city(domain_id: int) -
         contextros(domain_id, "switch", "--on", "London", "--off", "Tokyo", "--sync")
         london = next_greeting(launch, "contextros_greeting", "GMT")
         assert same_greeting(next_greeting(launch, "plain_London", "GMT"), london)
+
+
+def test_the_line_counter_counts_code_not_docstrings_comments_or_blank_lines(
+    tmp_path: Path,
+) -> None:
+    from benchmarks.greeting import counted_lines
+
+    source = tmp_path / "sample.layers"
+    source.write_text(
+        '"""A module docstring\n\nover three lines."""\n'
+        "# a comment\n"
+        "import math  # a trailing comment does not hide code\n"
+        "\n"
+        "layer Tokyo:\n"
+        '    """A layer docstring."""\n'
+        "    def zone() -> float:\n"
+        "        return (math.pi +\n"
+        "                1.0)\n"
+    )
+    assert counted_lines(source) == 5  # import, layer, def, and the two lines of the return
