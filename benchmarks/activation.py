@@ -40,6 +40,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from contextros.errors import LayerError
+
 if TYPE_CHECKING:
     from contextros.protocol import LayerState
 
@@ -221,6 +223,10 @@ class Caller:
             time.sleep(0.005)
         raise TimeoutError(f"epoch {epoch} not applied by all {count} nodes within 10 s")
 
+    def active_context(self) -> str:
+        """The context the manager has active (Indoor when none yet: the next switch is Outdoor)."""
+        return "Outdoor" if list(self.client.query().active_layers) == ["Outdoor"] else "Indoor"
+
     def activate(self, context: str, synchronous: bool) -> tuple[Any, float]:
         other = CONTEXTS[1 - CONTEXTS.index(context)]
         started = time.perf_counter()
@@ -323,27 +329,37 @@ def measure(
         caller.round_trip()
     times: dict[str, list[float]] = {series: [] for series in SERIES}
     async_epochs: list[int] = []
-    active = "Outdoor" if list(caller.client.query().active_layers) == ["Outdoor"] else "Indoor"
+    active = caller.active_context()
     modes = MODES[:2] if shared else MODES
     for index in range(rounds):
         for mode in modes if index % 2 else reversed(modes):
             target = CONTEXTS[1 - CONTEXTS.index(active)]
-            if mode == "asynchronous":
-                result, _ = caller.activate(target, synchronous=False)
-                async_epochs.append(result.epoch)
-                caller.wait_until_applied(result.epoch, len(participants))
-                active = target
-            elif mode == "synchronous":
-                result, round_trip = caller.activate(target, synchronous=True)
-                times["synchronous"].append(result.elapsed)
-                times["synchronous, caller"].append(round_trip)
-                active = target
-            elif mode == FLOOR:
-                for _ in range(PINGS_PER_ROUND):
-                    times[FLOOR].append(caller.round_trip())
-                    time.sleep(0.005)
-            else:
-                times[mode].append(caller.set_parameters(target, parallel="parallel" in mode))
+            try:
+                if mode == "asynchronous":
+                    result, _ = caller.activate(target, synchronous=False)
+                    async_epochs.append(result.epoch)
+                    caller.wait_until_applied(result.epoch, len(participants))
+                    active = target
+                elif mode == "synchronous":
+                    result, round_trip = caller.activate(target, synchronous=True)
+                    times["synchronous"].append(result.elapsed)
+                    times["synchronous, caller"].append(round_trip)
+                    active = target
+                elif mode == FLOOR:
+                    for _ in range(PINGS_PER_ROUND):
+                        times[FLOOR].append(caller.round_trip())
+                        time.sleep(0.005)
+                else:
+                    parallel = "parallel" in mode
+                    times[mode].append(caller.set_parameters(target, parallel=parallel))
+            except (RuntimeError, TimeoutError, LayerError) as error:
+                # A lost sample, reported as lost; the manager's state decides what is active.
+                print(f"  {count} nodes, {mode}: {error}", file=sys.stderr, flush=True)
+                active = (
+                    "Outdoor"
+                    if list(caller.client.query().active_layers) == ["Outdoor"]
+                    else "Indoor"
+                )
             time.sleep(0.005)  # a pause between measurements, as between real context switches
     applied = _collect_apply_times(launch)
     for epoch in async_epochs:
@@ -374,11 +390,17 @@ def run(
         try:
             for count in node_counts:
                 print(f"  activation: {count} nodes", flush=True)
-                times = measure(count, caller, launch, rounds, per_process, shared=False)
-                times |= measure(count, caller, launch, rounds, per_process, shared=True)
+                times: dict[str, list[float]] = {}
+                for shared in (False, True):
+                    try:
+                        times |= measure(count, caller, launch, rounds, per_process, shared)
+                    except (RuntimeError, TimeoutError, LayerError) as error:
+                        # Not measured (reported as lost), rather than no report at all.
+                        print(f"  {count} nodes: {error}", file=sys.stderr, flush=True)
+                        _collect_apply_times(launch)  # stops the workers
                 for series in SERIES:
                     attempts = rounds * (PINGS_PER_ROUND if series == FLOOR else 1)
-                    row = _row(series, count, times[series], attempts, rounds)
+                    row = _row(series, count, times.get(series, []), attempts, rounds)
                     rows.append(row | {"per_process": per_process})
         finally:
             caller.close()
