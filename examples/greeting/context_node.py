@@ -33,7 +33,7 @@ class GreetingNode(ContextNode):
 
     def greet(self, now: datetime | None = None) -> None:
         local = (now or datetime.now(timezone.utc)).astimezone(greeting.zone())
-        part_of_day = 0 if 5 <= local.hour < 12 else 1 if local.hour < 18 else 2
+        part_of_day = 0 if 5 <= local.hour < 12 else 1 if 12 <= local.hour < 18 else 2
         line = f"{local:%H:%M} {local.tzname()} {greeting.words(part_of_day)}"
         self.publisher.publish(String(data=line))
         print(line, flush=True)

@@ -42,7 +42,7 @@ class GreetingNode(Node):
         else:
             zone = timezone(timedelta(0), "GMT")
         local = (now or datetime.now(timezone.utc)).astimezone(zone)
-        part_of_day = 0 if 5 <= local.hour < 12 else 1 if local.hour < 18 else 2
+        part_of_day = 0 if 5 <= local.hour < 12 else 1 if 12 <= local.hour < 18 else 2
         if city == "Tokyo":
             words = ("おはようございます", "こんにちは", "こんばんは")[part_of_day]
         else:

@@ -9,9 +9,15 @@ import time
 from collections.abc import Iterator
 from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from examples.launch import Launch, ros_environment
+
+if TYPE_CHECKING:
+    from examples.greeting import context_node, plain_node
+
+    BothNodes = tuple[plain_node.GreetingNode, context_node.GreetingNode]
 
 # The same instants seen from both cities: morning, afternoon and evening in one or the other.
 INSTANTS = [datetime(2026, 11, 21, hour, 30, tzinfo=timezone.utc) for hour in (0, 6, 10, 15, 21)]
@@ -19,7 +25,11 @@ EXPECTED = {
     ("Tokyo", 0): "09:30 JST おはようございます",
     ("Tokyo", 6): "15:30 JST こんにちは",
     ("Tokyo", 10): "19:30 JST こんばんは",
+    ("Tokyo", 15): "00:30 JST こんばんは",
+    ("Tokyo", 21): "06:30 JST おはようございます",
+    ("London", 0): "00:30 GMT Good evening",
     ("London", 6): "06:30 GMT Good morning",
+    ("London", 10): "10:30 GMT Good morning",
     ("London", 15): "15:30 GMT Good afternoon",
     ("London", 21): "21:30 GMT Good evening",
 }
@@ -27,7 +37,7 @@ GREETING = re.compile(r"^(\d\d):(\d\d) (JST|GMT) (.+)$")
 
 
 @pytest.fixture
-def both_nodes(domain_id: int) -> Iterator[tuple[object, object]]:
+def both_nodes(domain_id: int) -> Iterator[BothNodes]:
     import rclpy
     from examples.greeting import context_node, plain_node
 
@@ -44,7 +54,7 @@ def both_nodes(domain_id: int) -> Iterator[tuple[object, object]]:
 @pytest.mark.ros
 @pytest.mark.parametrize("city", ["Tokyo", "London"])
 def test_both_implementations_greet_alike_at_every_time_of_day(
-    both_nodes: tuple[object, object], city: str, capsys: pytest.CaptureFixture[str]
+    both_nodes: BothNodes, city: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     from examples.greeting.context_node import greeting
     from rclpy.parameter import Parameter
@@ -52,14 +62,13 @@ def test_both_implementations_greet_alike_at_every_time_of_day(
     from contextros import set_active
 
     plain, context = both_nodes
-    plain.set_parameters([Parameter("city", value=city)])  # type: ignore[attr-defined]
+    plain.set_parameters([Parameter("city", value=city)])
     set_active([getattr(greeting, city)])  # what the manager's state does in the node
     for instant in INSTANTS:
-        plain.greet(instant)  # type: ignore[attr-defined]
-        context.greet(instant)  # type: ignore[attr-defined]
+        plain.greet(instant)
+        context.greet(instant)
         plain_line, context_line = capsys.readouterr().out.splitlines()
-        assert context_line == plain_line
-        assert EXPECTED.get((city, instant.hour), plain_line) == plain_line
+        assert plain_line == context_line == EXPECTED[city, instant.hour]
 
 
 @pytest.mark.ros
