@@ -40,7 +40,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from contextros.errors import LayerError
+from contextros import LayerError
 
 if TYPE_CHECKING:
     from contextros.protocol import LayerState

@@ -13,8 +13,7 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import String
 
-from contextros import active_layers
-from contextros.language import load
+from contextros import active_layers, load
 from contextros.ros import ContextNode
 
 location = load(Path(__file__).with_name("location.layers"))

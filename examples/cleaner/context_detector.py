@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 from sensor_msgs.msg import NavSatFix, NavSatStatus
 
-from contextros.errors import LayerError
+from contextros import LayerError
 from contextros.ros import LayerClient
 
 SETTLE_READINGS = 3  # 0.15 s of the 20 Hz receiver

@@ -17,8 +17,7 @@ from geometry_msgs.msg import PoseStamped, TwistStamped
 from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
-from contextros import active_layers
-from contextros.language import load
+from contextros import active_layers, load
 from contextros.ros import ContextNode
 from examples.cleaner.gps_frame import to_local
 

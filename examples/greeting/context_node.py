@@ -14,9 +14,8 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import String
 
-from contextros import active_layers
-from contextros.language import load
-from contextros.ros.participant import ContextNode
+from contextros import active_layers, load
+from contextros.ros import ContextNode
 
 greeting = load(Path(__file__).with_name("greeting.layers"))
 
