@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from examples.launch import Launch, OutputLine
@@ -80,14 +81,15 @@ def run(time_limit: float = TIME_LIMIT) -> Story:
     story = Story()
     with Launch() as launch:
 
-        def follow(until: float, done: object) -> bool:
+        def follow(until: float, done: Callable[[], bool]) -> bool:
+            """Narrate until `done()` (True), the time `until` or a child's early exit (False)."""
             while launch.elapsed() < until:
                 line = launch.next_line(timeout=until - launch.elapsed())
                 if line is None:
                     break
                 narrate(line)
                 story.record(line)
-                if callable(done) and done():
+                if done():
                     return True
                 for name, process in launch.processes.items():
                     if process.poll() is not None:
