@@ -69,3 +69,11 @@ def test_heartbeat_period() -> None:
     assert len(p.tick(0.26)) == 1
     (leaving,) = p.leave(0.3)
     assert isinstance(leaving, PublishStatus) and leaving.report.leaving
+
+
+def test_an_open_critical_section_is_reported_even_with_nothing_deferred() -> None:
+    p = participant()
+    p.critical_section_open = True
+    (action,) = p.announce(0.0)
+    assert isinstance(action, PublishStatus)
+    assert action.report.in_critical_section and action.report.pending_epoch == 0

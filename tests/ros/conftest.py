@@ -1,9 +1,10 @@
 """Isolation for tests that start real ROS 2 processes.
 
-Every pytest-xdist worker gets its own ROS_DOMAIN_ID (60 + worker index), discovery stays
-on this machine, and RMW_IMPLEMENTATION is cleared (the pip wheels only have Fast DDS and
-rcl kills a process asking for another). Set here, at import, so that the test process's
-own rclpy and every child process inherit it.
+Every pytest-xdist worker gets its own ROS_DOMAIN_ID (60 + worker index, or the next one
+no other test process on this machine holds: two test runs at once must not hear each
+other's managers), discovery stays on this machine, and RMW_IMPLEMENTATION is cleared (the
+pip wheels only have Fast DDS and rcl kills a process asking for another). Set here, at
+import, so that the test process's own rclpy and every child process inherit it.
 """
 
 from __future__ import annotations
@@ -17,13 +18,13 @@ import pytest
 pytest.importorskip("rclpy")
 pytest.importorskip("contextros_interfaces", reason="run `make ros` to build the interfaces")
 
-from tests.ros.processes import ProcessGroup
+from tests.ros.processes import ProcessGroup, reserve_domain_id
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
 
-_worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
-DOMAIN_ID = 60 + int(_worker.removeprefix("gw") or 0)
+_worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+DOMAIN_ID = reserve_domain_id(60 + _worker)
 os.environ["ROS_DOMAIN_ID"] = str(DOMAIN_ID)
 os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
 os.environ.pop("RMW_IMPLEMENTATION", None)

@@ -81,7 +81,7 @@ def main() -> None:
 
     node.context_participant.add_listener(on_applied)
     threading.Thread(target=read_commands, daemon=True).start()
-    emit("ready", node=node.get_fully_qualified_name())
+    emit("ready", node=node.get_fully_qualified_name(), mode=cleaner.mode())
     spin_nodes([node])
     rclpy.try_shutdown()
 

@@ -20,6 +20,26 @@ PARTICIPANT_SCRIPT = HERE / "participant_process.py"
 CLIENT_SCRIPT = HERE / "client_process.py"
 
 
+_held_domains: list[Any] = []  # open lock files, held for the life of this process
+
+
+def reserve_domain_id(first: int, last: int = 229) -> int:
+    """The first ROS domain id from `first` that no other process on this machine holds
+    (an exclusive lock on a file per id, released when the process exits)."""
+    import fcntl
+
+    for domain in [*range(first, last + 1), *range(1, first)]:
+        lock = open(f"/tmp/contextros-test-domain-{domain}.lock", "w")  # noqa: SIM115
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            lock.close()
+            continue
+        _held_domains.append(lock)
+        return domain
+    raise RuntimeError("no free ROS domain id for the tests")
+
+
 class Child:
     """One process whose stdout lines are collected (JSON lines parsed) as they arrive."""
 

@@ -8,11 +8,12 @@ import subprocess
 import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 from contextros.ros import LayerClient
-from tests.ros.processes import ProcessGroup
+from tests.ros.processes import ProcessGroup, reserve_domain_id
 from tests.ros.system import RunningSystem, settle, start_system
 
 
@@ -91,7 +92,15 @@ def test_watch_streams_switches_with_latency(
 
 
 def test_no_manager_exits_with_status_3() -> None:
-    empty_domain = str(int(os.environ["ROS_DOMAIN_ID"]) + 100)
+    empty_domain = str(reserve_domain_id(int(os.environ["ROS_DOMAIN_ID"]) + 1))
     lonely = contextros("activate", "Night", "--wait-manager", "0.5", domain=empty_domain)
     assert lonely.returncode == 3
     assert "no Layer manager" in lonely.stderr
+
+
+def test_manager_refuses_a_damaged_state_file(tmp_path: Path) -> None:
+    damaged = tmp_path / "state.json"
+    damaged.write_text("{ not json", encoding="utf-8")
+    refused = contextros("manager", "--state-file", str(damaged))
+    assert refused.returncode == 1
+    assert "not a ContextROS state file" in refused.stderr and str(damaged) in refused.stderr

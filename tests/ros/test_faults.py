@@ -11,6 +11,24 @@ from tests.ros.processes import ProcessGroup
 from tests.ros.system import start_system, wait_registry
 
 
+def test_participant_started_before_the_manager_joins_when_it_appears(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    early = processes.participant("early")
+    ready = early.wait_for(
+        lambda events: next((e for e in events if e["event"] == "ready"), None), 15, "ready"
+    )
+    assert ready["mode"] == "base", "without a manager the node runs its base behaviour"
+    time.sleep(0.3)
+    assert early.applied() == []
+    processes.manager("--liveness-timeout", "1.0")
+    early.wait_applied(1, timeout=10)
+    wait_registry(client, lambda r: [p.node for p in r.participants] == ["/early"], what="joined")
+    result = client.request(["Outdoor"], synchronous=True, timeout=5)
+    assert result.success and result.acknowledged == ("/early",), result.message
+    assert early.wait_applied(result.epoch)["mode"] == "vacuum+base"
+
+
 def test_participant_killed_during_a_synchronous_activation(
     client: LayerClient, processes: ProcessGroup
 ) -> None:

@@ -38,8 +38,8 @@ def test_synchronous_activation_is_acknowledged_by_every_participant(
     assert result.acknowledged == NODES and result.not_acknowledged == ()
     assert result.active == ("Indoor", "Night")
     for child in system.participants.values():
-        # The acknowledgement came after the node applied it: the event is already there.
-        applied = child.applied()[-1]
+        # The node printed this line right after acknowledging: it may lag the answer a little.
+        applied = child.wait_applied(result.epoch, timeout=2)
         assert applied["epoch"] == result.epoch
         assert applied["mode"] == "quiet+wipe+base", "the layered method follows the manager"
 
@@ -80,7 +80,7 @@ def test_switch_is_one_atomic_state_everywhere(system: RunningSystem, client: La
     result = client.request(["Outdoor", "Gps"], ["Indoor"], synchronous=True, timeout=5)
     assert result.success, result.message
     for child in system.participants.values():
-        applied = child.applied()[-1]
+        applied = child.wait_applied(result.epoch, timeout=2)
         assert applied["active"] == ["Night", "Outdoor", "Gps"]
         assert applied["mode"] == "vacuum+quiet+base"
     client.request(["Indoor"], ["Gps"], synchronous=True, timeout=5)
@@ -118,6 +118,7 @@ def test_critical_section_delays_the_acknowledgement(
     waited = time.monotonic() - started
     assert patient.success, patient.message
     assert waited > 1.0, "the acknowledgement waited for the critical section"
+    p1.wait_applied(patient.epoch, timeout=2)
     closed = next(e for e in p1.events if e["event"] == "critical-closed")
     applied = [e for e in p1.applied() if e["epoch"] >= short.epoch]
     assert applied and all(e["t"] >= closed["t"] for e in applied)

@@ -37,6 +37,8 @@ class ParticipantProtocol:
         self.pending_epoch = 0
         self.failed_epoch = 0
         self.error = ""
+        # Set by the adapter from the core: a critical section is open in this node.
+        self.critical_section_open = False
         self._last_sent: float | None = None
 
     @property
@@ -45,8 +47,13 @@ class ParticipantProtocol:
         return max(self.applied_epoch, self.pending_epoch, self.failed_epoch)
 
     @property
-    def in_critical_section(self) -> bool:
+    def deferring(self) -> bool:
+        """A received state waits for a critical section to close."""
         return self.pending_epoch > self.applied_epoch
+
+    @property
+    def in_critical_section(self) -> bool:
+        return self.critical_section_open or self.deferring
 
     def report(self, leaving: bool = False) -> ParticipantReport:
         return ParticipantReport(
@@ -56,7 +63,7 @@ class ParticipantProtocol:
             applied_epoch=self.applied_epoch,
             active=self.active,
             in_critical_section=self.in_critical_section,
-            pending_epoch=self.pending_epoch if self.in_critical_section else 0,
+            pending_epoch=self.pending_epoch if self.deferring else 0,
             failed_epoch=self.failed_epoch,
             error=self.error,
             leaving=leaving,

@@ -23,6 +23,7 @@ from rclpy.node import Node
 
 from contextros.core import Layer, SwitchResult, active_layers, layer_named, set_active
 from contextros.core import registry as layer_registry
+from contextros.core.runtime import RUNTIME
 from contextros.errors import LayerError, UnknownLayerError
 from contextros.protocol import (
     DEFAULT_HEARTBEAT_PERIOD,
@@ -135,6 +136,7 @@ class ContextParticipant:
     # -- actions ----------------------------------------------------------------------------
 
     def _run(self, actions: list[ParticipantAction]) -> None:
+        self.protocol.critical_section_open = RUNTIME.in_critical_section
         for action in actions:
             if isinstance(action, ApplyState):
                 self._apply(action.state)
