@@ -153,3 +153,18 @@ def test_rapid_activations_from_two_clients_converge_without_regression(
         lambda r: all(p.applied_epoch == final.epoch for p in r.participants),
         what="every participant's acknowledgement of the final epoch",
     )
+
+
+def test_asynchronous_request_from_a_callback_style_future(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    import rclpy
+
+    before = settle(client, "Indoor")
+    future = client.request_async(["Night"], reason="from a callback")
+    rclpy.spin_until_future_complete(client.node, future, timeout_sec=10)
+    result = client.result_of(future)
+    assert result.success and result.epoch == before.epoch + 1
+    assert result.acknowledged == (), "asynchronous: answered once published"
+    for child in system.participants.values():
+        assert child.wait_applied(result.epoch)["active"] == ["Indoor", "Night"]

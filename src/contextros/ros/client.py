@@ -5,7 +5,6 @@ from __future__ import annotations
 import getpass
 import os
 from collections.abc import Iterable
-from dataclasses import dataclass
 from typing import Any
 
 import rclpy
@@ -28,15 +27,13 @@ def default_requester() -> str:
     return f"{user}@pid{os.getpid()}"
 
 
-@dataclass(frozen=True)
-class RegistrySnapshot:
-    """The manager's registry as `QueryRegistry` returns it (the raw response)."""
-
-    response: Any
-
-
 class LayerClient:
-    """Sends activation commands to the Layer manager from an existing node."""
+    """Sends activation commands to the Layer manager from an existing node.
+
+    `request`, `activate`, `deactivate` and `query` spin the node until the answer comes:
+    call them from a main loop or another thread, not from one of the node's callbacks
+    (there, use `request_async` and handle the future's result with `result_of`).
+    """
 
     def __init__(self, node: Node, requester: str | None = None) -> None:
         self.node = node
@@ -52,6 +49,26 @@ class LayerClient:
                 f"after {timeout:g} s; start one with `contextros manager`"
             )
 
+    def request_async(
+        self,
+        activate: Iterable[str] = (),
+        deactivate: Iterable[str] = (),
+        *,
+        synchronous: bool = False,
+        timeout: float = 0.0,
+        reason: str = "",
+    ) -> Any:
+        """Send one activation command; returns the rclpy Future of the service response."""
+        request = command_to_request(
+            activate, deactivate, synchronous, timeout, self.requester, reason
+        )
+        return self._activate.call_async(request)
+
+    @staticmethod
+    def result_of(future: Any) -> ActivationResult:
+        """The manager's answer carried by a completed `request_async` future."""
+        return result_from_response(future.result())
+
     def request(
         self,
         activate: Iterable[str] = (),
@@ -62,11 +79,10 @@ class LayerClient:
         reason: str = "",
     ) -> ActivationResult:
         """Send one activation command and wait (spinning the node) for the manager's answer."""
-        request = command_to_request(
-            activate, deactivate, synchronous, timeout, self.requester, reason
+        future = self.request_async(
+            activate, deactivate, synchronous=synchronous, timeout=timeout, reason=reason
         )
         reply_timeout = (timeout or 30.0) + REPLY_MARGIN
-        future = self._activate.call_async(request)
         rclpy.spin_until_future_complete(self.node, future, timeout_sec=reply_timeout)
         if not future.done():
             self._activate.remove_pending_request(future)
