@@ -53,11 +53,16 @@ class LatencyReport:
 def context_node_swarm(
     count: int, layers: Sequence[str] = BENCH_LAYERS, first: int = 0
 ) -> list[ContextNode]:
-    """`count` context nodes (ctx_<first>...) implementing `layers`, for one executor."""
+    """`count` context nodes (ctx_<first>...) implementing `layers`, for one executor.
+
+    Without parameter services: rclpy's executor walks every entity of every node on each
+    wake-up, and six services per node would dominate the measurement.
+    """
     for name in layers:
         Layer(name, group="bench")
     return [
-        ContextNode(f"ctx_{index}", layers=list(layers)) for index in range(first, first + count)
+        ContextNode(f"ctx_{index}", layers=list(layers), start_parameter_services=False)
+        for index in range(first, first + count)
     ]
 
 

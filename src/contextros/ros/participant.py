@@ -95,7 +95,7 @@ class ContextParticipant:
         self._state_sub = node.create_subscription(
             LayerStateMsg, STATE_TOPIC, self._on_state, STATE_QOS
         )
-        self._heartbeat = node.create_timer(heartbeat_period / 2, self._on_heartbeat)
+        self._heartbeat = node.create_timer(heartbeat_period, self._on_heartbeat)
         self._run(self.protocol.announce(time.monotonic()))
 
     @property
