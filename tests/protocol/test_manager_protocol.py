@@ -14,6 +14,7 @@ from contextros.protocol import (
     ManagerAction,
     ManagerProtocol,
     ManagerSettings,
+    ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
     ParticipantReport,
@@ -347,3 +348,16 @@ def test_recovery_ends_within_three_windows_whatever_happens() -> None:
         if states(manager.tick(now)):
             break
     assert not manager.recovering and now <= 3 * SETTINGS.recovery_window + 0.1
+
+
+def test_restart_of_a_participant_is_told_apart_from_two_nodes_sharing_a_name() -> None:
+    system = System(nodes=("/a",))
+    restarted = system.manager.receive_status(report("/a", incarnation="2"), system.now)
+    assert ParticipantJoined("/a", restarted=True) in restarted
+    stale_leave = report("/a", incarnation="1", leaving=True)
+    assert system.manager.receive_status(stale_leave, system.now) == []
+    assert system.manager.live_nodes == ("/a",), "the old process leaving drops nobody"
+    twin = system.manager.receive_status(report("/a", incarnation="1"), system.now)
+    assert twin == [ParticipantConflict("/a")]
+    for incarnation in ("2", "1", "2"):
+        assert system.manager.receive_status(report("/a", incarnation=incarnation), 0.0) == []

@@ -83,6 +83,13 @@ class ParticipantDropped:
 
 
 @dataclass(frozen=True)
+class ParticipantConflict:
+    """Two live processes report under one node name: their acknowledgements mix up."""
+
+    node: str
+
+
+@dataclass(frozen=True)
 class ApplyState:
     """Participant side: make this state the node's decisive configuration (in its executor)."""
 
@@ -96,5 +103,5 @@ class PublishStatus:
     report: ParticipantReport
 
 
-ManagerAction = PublishState | Reply | ParticipantJoined | ParticipantDropped
+ManagerAction = PublishState | Reply | ParticipantJoined | ParticipantDropped | ParticipantConflict
 ParticipantAction = ApplyState | PublishStatus

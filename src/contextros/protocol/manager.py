@@ -21,6 +21,7 @@ from contextros.protocol.events import (
     ActivationCommand,
     ActivationResult,
     ManagerAction,
+    ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
     ParticipantReport,
@@ -55,6 +56,10 @@ class ManagerSettings:
 class ParticipantRecord:
     report: ParticipantReport
     last_heard: float
+    # Earlier incarnations under this name: a process never reuses one, so hearing one
+    # again means two live nodes share the name.
+    retired: frozenset[str] = frozenset()
+    conflict_reported: bool = False
 
 
 @dataclass(frozen=True)
@@ -160,19 +165,30 @@ class ManagerProtocol:
 
     def receive_status(self, report: ParticipantReport, now: float) -> list[ManagerAction]:
         actions: list[ManagerAction] = []
+        known = self._participants.get(report.node)
         if report.leaving:
-            if report.node in self._participants:
+            if known is not None and known.report.incarnation == report.incarnation:
                 actions += self._drop(report.node, "left", now)
             return actions
-        known = self._participants.get(report.node)
-        if known is None or known.report.incarnation != report.incarnation:
+        record = ParticipantRecord(report, last_heard=now)
+        if known is not None:
+            record.retired = known.retired
+            record.conflict_reported = known.conflict_reported
+        if known is not None and report.incarnation in known.retired:
+            record.retired = known.retired | {known.report.incarnation}
+            if not known.conflict_reported:
+                record.conflict_reported = True
+                actions.append(ParticipantConflict(report.node))
+        elif known is None or known.report.incarnation != report.incarnation:
             actions.append(ParticipantJoined(report.node, restarted=known is not None))
+            if known is not None:
+                record.retired = known.retired | {known.report.incarnation}
             if self._recovering_until is not None:
                 self._recovering_until = min(
                     max(self._recovering_until, now + self.settings.recovery_quiet),
                     self._recovery_limit,
                 )
-        self._participants[report.node] = ParticipantRecord(report, last_heard=now)
+        self._participants[report.node] = record
         if not self.recovering and report.applied_epoch > self._state.epoch:
             actions += self._overtake(report, now)
         actions += self._settle_pending(now)

@@ -26,6 +26,7 @@ from contextros.protocol import (
     ManagerAction,
     ManagerProtocol,
     ManagerSettings,
+    ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
     PublishState,
@@ -186,3 +187,8 @@ class LayerManagerNode(Node):
                 self.get_logger().info(f"participant {action.node} {verb}")
             elif isinstance(action, ParticipantDropped):
                 self.get_logger().warning(f"participant {action.node} dropped: {action.reason}")
+            elif isinstance(action, ParticipantConflict):
+                self.get_logger().error(
+                    f"two live nodes are named {action.node}: their acknowledgements cannot be "
+                    "told apart; give each context node a unique name (or namespace)"
+                )
