@@ -252,6 +252,7 @@ def _registry_as_dict(registry: Any) -> dict[str, Any]:
             for p in registry.participants
         ],
         "dropped": list(registry.dropped),
+        "recovering": registry.recovering,
     }
 
 
@@ -269,6 +270,8 @@ def _registry_as_text(registry: Any) -> str:
     active = ", ".join(data["active"]) or "none"
     by = f"{data['requester'] or '?'}: {data['reason'] or '-'}"
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]
+    if data["recovering"]:
+        parts[0] += "  - the manager is still recovering (listening to participants)"
     layer_rows = [
         [
             layer["name"],

@@ -170,11 +170,21 @@ class LayerManagerNode(Node):
 
     # -- actions ----------------------------------------------------------------------------
 
+    def _save(self, state: LayerState) -> None:
+        assert self.state_file is not None
+        try:
+            self.state_file.save(state)
+        except OSError as error:
+            # Keep switching: the participants still carry the epoch across a restart.
+            self.get_logger().error(
+                f"state file {self.state_file.path} not written for epoch {state.epoch}: {error}"
+            )
+
     def _run(self, actions: list[ManagerAction]) -> None:
         for action in actions:
             if isinstance(action, PublishState):
                 if self.state_file:
-                    self.state_file.save(action.state)
+                    self._save(action.state)
                 self._state_pub.publish(state_to_msg(action.state, time.time()))
                 self.get_logger().info(
                     f"epoch {action.state.epoch}: [{', '.join(action.state.active)}] "

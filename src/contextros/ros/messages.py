@@ -173,6 +173,7 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
     ]
     response.dropped = list(view.dropped)
     response.manager_id = manager_id
+    response.recovering = view.recovering
     return response
 
 
