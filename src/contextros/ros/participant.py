@@ -63,6 +63,12 @@ class ContextParticipant:
 
     `layers` are the layers this node implements (announced with their relations); by
     default every layer defined in the process when the participant is created.
+
+    Each newer state is applied in the node's executor with the core's `set_active` (the
+    manager's state replaces whatever was activated locally) and acknowledged once applied.
+    A `with critical():` section held by another thread defers the switch without blocking
+    the executor; the acknowledgement follows when the section ends. The decisive
+    configuration belongs to the process, so one participant per process is enough.
     """
 
     def __init__(
