@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Build and install the contextros_interfaces rosidl package into a venv that holds the
-# pip ROS 2 wheels (the `ros` and `ros-build` extras), with plain cmake + ninja (~10 s).
+# pip ROS 2 wheels (the `ros` and `ros-build` extras), with plain cmake + ninja or make
+# (~15 s).
 # Usage: bash interfaces/build.sh /absolute/path/to/venv
 # Idempotent: re-running rebuilds only what changed. Fails loudly on any error.
 set -euo pipefail
@@ -16,9 +17,20 @@ source_dir="$here/contextros_interfaces"
 build_dir="$here/build/contextros_interfaces"
 
 [[ -x "$python" ]] || { echo "error: no python at $python (create the venv first: make venv)" >&2; exit 1; }
-for tool in cmake ninja cc; do
-  command -v "$tool" >/dev/null || { echo "error: '$tool' not found; install cmake, ninja and a C compiler" >&2; exit 1; }
+for tool in cmake cc; do
+  command -v "$tool" >/dev/null || { echo "error: '$tool' not found; install cmake and a C compiler" >&2; exit 1; }
 done
+# Ninja when there is one, else make; a build dir keeps the generator it was made with.
+if [[ -f "$build_dir/CMakeCache.txt" ]]; then
+  generator="$(sed -n 's/^CMAKE_GENERATOR:INTERNAL=//p' "$build_dir/CMakeCache.txt")"
+elif command -v ninja >/dev/null; then
+  generator="Ninja"
+elif command -v make >/dev/null; then
+  generator="Unix Makefiles"
+else
+  echo "error: neither ninja nor make found; install one of them" >&2
+  exit 1
+fi
 "$python" -c "import rosidl_adapter" 2>/dev/null \
   || { echo "error: the ROS build wheels are missing in $venv (pip install -e '.[ros,ros-build]')" >&2; exit 1; }
 
@@ -27,7 +39,7 @@ unset RMW_IMPLEMENTATION AMENT_PREFIX_PATH COLCON_PREFIX_PATH CMAKE_PREFIX_PATH
 export AMENT_PREFIX_PATH="$venv"
 export PATH="$venv/bin:$PATH"
 
-cmake -S "$source_dir" -B "$build_dir" -G Ninja \
+cmake -S "$source_dir" -B "$build_dir" -G "$generator" \
   -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$venv" \
   -DCMAKE_INSTALL_PREFIX="$venv" \
@@ -35,7 +47,7 @@ cmake -S "$source_dir" -B "$build_dir" -G Ninja \
   -DPython3_FIND_VIRTUALENV=ONLY \
   -DBUILD_TESTING=OFF \
   -DCMAKE_PROJECT_INCLUDE="$here/cmake/fix_rosidl_generator_py_includes.cmake"
-cmake --build "$build_dir"
+cmake --build "$build_dir" --parallel
 cmake --install "$build_dir"
 
 # Prove the result works through the wheels' own bootstrap (fresh interpreter, no env leak).
