@@ -71,7 +71,22 @@ def main() -> None:
     parser.add_argument("--name", required=True)
     parser.add_argument("--layers", default=",".join(LAYERS))
     parser.add_argument("--heartbeat", type=float, default=0.25)
+    parser.add_argument("--stubborn", help="a layer whose on_deactivate hook always raises")
     args = parser.parse_args()
+    if args.stubborn:
+        old = LAYERS[args.stubborn]
+
+        def refuse() -> None:
+            raise RuntimeError(f"{args.stubborn} cannot be left now")
+
+        # A later definition of a name replaces the earlier one (relations and hooks).
+        LAYERS[args.stubborn] = Layer(
+            old.name,
+            group=old.group,
+            excludes=old.excludes,
+            requires=old.requires,
+            on_deactivate=refuse,
+        )
     rclpy.init()
     cleaner = Cleaner()
     node = ContextNode(args.name, layers=args.layers.split(","), heartbeat_period=args.heartbeat)

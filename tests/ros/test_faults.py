@@ -95,3 +95,20 @@ def test_restarted_manager_keeps_epochs_monotonic_and_the_active_set(
         epochs = [e["epoch"] for e in child.applied()]
         assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name}: {epochs}"
         assert epochs[-1] == after.epoch
+
+
+def test_a_node_that_cannot_apply_a_state_is_named_at_once(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    processes.participant("stubborn", "--stubborn", "Night")
+    start_system(processes, client, ["willing"])
+    wait_registry(client, lambda r: len(r.participants) == 2, what="both participants")
+    assert client.request(["Night"], synchronous=True, timeout=5).success
+    started = time.monotonic()
+    refused = client.request([], ["Night"], synchronous=True, timeout=10)
+    assert time.monotonic() - started < 2.0, "a failure is reported, not waited out"
+    assert not refused.success
+    assert refused.acknowledged == ("/willing",)
+    assert refused.not_acknowledged == ("/stubborn",)
+    assert "/stubborn (failed to apply: epoch" in refused.message
+    assert "Night cannot be left now" in refused.message
