@@ -18,6 +18,7 @@ from contextros.protocol import (
     ParticipantProtocol,
     ParticipantReport,
     PublishState,
+    Reply,
 )
 
 LAYERS = (
@@ -70,3 +71,85 @@ def test_no_regression_and_convergence_under_reordering(
         assert (p.applied_epoch, p.active) == (manager.state.epoch, manager.state.active)
         report = p.report()
         assert isinstance(report, ParticipantReport) and report.applied_epoch == epochs[-1]
+
+
+TICK = 0.05
+events = st.lists(
+    st.one_of(
+        st.tuples(st.just("command"), st.sampled_from(NAMES), st.booleans(), st.booleans()),
+        st.tuples(st.just("ack"), st.integers(0, 2), st.booleans()),
+        st.tuples(st.just("wait"), st.floats(0.05, 1.5)),
+        st.tuples(st.just("die"), st.integers(0, 2)),
+    ),
+    max_size=40,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(script=events)
+def test_every_synchronous_command_gets_one_honest_answer_in_time(script: list[tuple]) -> None:  # type: ignore[type-arg]
+    settings_ = ManagerSettings(liveness_timeout=1.0, default_timeout=2.0, recovery_window=0.0)
+    manager = ManagerProtocol(0.0, settings_)
+    now = 0.0
+    nodes = [f"/p{i}" for i in range(3)]
+    alive = dict.fromkeys(nodes, True)
+    applied = dict.fromkeys(nodes, 0)
+    for node in nodes:
+        manager.receive_status(ParticipantReport(node, "1", LAYERS), now)
+    manager.tick(now)
+    asked: dict[int, tuple[float, bool, set[str]]] = {}  # id -> (deadline, synchronous, live)
+    answered: dict[int, object] = {}
+    last_epoch = manager.state.epoch
+
+    def collect(actions: list[object]) -> None:
+        nonlocal last_epoch
+        for action in actions:
+            if isinstance(action, PublishState):
+                assert action.state.epoch == last_epoch + 1
+                last_epoch = action.state.epoch
+            if isinstance(action, Reply):
+                assert action.request_id not in answered, "answered twice"
+                answered[action.request_id] = action.result
+                result = action.result
+                deadline, synchronous, live = asked[action.request_id]
+                assert set(result.acknowledged) | set(result.not_acknowledged) <= live
+                assert now <= deadline + TICK + 1e-9, "answered at the first tick past the timeout"
+                for node in result.acknowledged:
+                    assert applied[node] >= result.epoch, "acknowledged without applying"
+                if result.success and synchronous:
+                    assert set(result.acknowledged) == live
+
+    for request_id, event in enumerate(script):
+        if event[0] == "command":
+            _, layer, activate, synchronous = event
+            command = ActivationCommand(
+                request_id,
+                activate=(layer,) if activate else (),
+                deactivate=() if activate else (layer,),
+                synchronous=synchronous,
+            )
+            live = {n for n in nodes if n in manager.live_nodes}
+            asked[request_id] = (now + settings_.default_timeout, synchronous, live)
+            collect(manager.receive_command(command, now))
+        elif event[0] == "ack":
+            _, index, fresh = event
+            node = nodes[index]
+            if alive[node]:
+                if fresh:
+                    applied[node] = manager.state.epoch
+                report = ParticipantReport(node, "1", LAYERS, applied_epoch=applied[node])
+                collect(manager.receive_status(report, now))
+        elif event[0] == "wait":
+            end = now + event[1]
+            while now < end:  # the adapter ticks every 50 ms
+                now = min(end, now + TICK)
+                collect(manager.tick(now))
+        else:
+            alive[nodes[event[1]]] = False
+    end = now + settings_.default_timeout + settings_.liveness_timeout + 0.1
+    while now < end:
+        now += TICK
+        collect(manager.tick(now))
+    synchronous_ids = {i for i, e in enumerate(script) if e[0] == "command" and e[3]}
+    asynchronous_ids = {i for i, e in enumerate(script) if e[0] == "command" and not e[3]}
+    assert synchronous_ids | asynchronous_ids == set(answered), "every command is answered"
