@@ -361,3 +361,27 @@ def test_restart_of_a_participant_is_told_apart_from_two_nodes_sharing_a_name() 
     assert twin == [ParticipantConflict("/a")]
     for incarnation in ("2", "1", "2"):
         assert system.manager.receive_status(report("/a", incarnation=incarnation), 0.0) == []
+
+
+def test_a_state_of_another_manager_with_our_epoch_is_overtaken() -> None:
+    # m3 started without memory and heard only stale reports: it numbered its first state
+    # like the one its predecessor published; the nodes, on the predecessor's, report it.
+    manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0, manager_id="m3"))
+    manager.receive_status(report("/a", 3, ("Night",)), 0.5)
+    (mine,) = states(manager.tick(1.0))
+    assert mine.epoch == 4
+    theirs = report("/a", 4, ("Indoor",), applied_manager_id="m2")
+    (state,) = states(manager.receive_status(theirs, 1.2))
+    assert state.epoch == 5 and state.active == ("Indoor",)
+    ours = report("/a", 5, ("Indoor",), applied_manager_id="m3")
+    assert states(manager.receive_status(ours, 1.3)) == []
+
+
+def test_a_stale_report_does_not_take_a_node_back() -> None:
+    system = System()
+    system.command(1, activate=("Night",), synchronous=True)
+    system.ack("/a")
+    stale = system.manager.receive_status(report("/a", 1), system.now + 0.1)
+    assert stale == []
+    view = system.manager.registry(system.now + 0.1)
+    assert next(p for p in view.participants if p.node == "/a").applied_epoch == 2

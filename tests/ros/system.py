@@ -59,7 +59,8 @@ def wait_registry(
             nodes = [(p.node, p.applied_epoch) for p in registry.participants]
             raise AssertionError(
                 f"timed out waiting for {what}: epoch {registry.epoch}, "
-                f"active {list(registry.active_layers)}, participants {nodes}"
+                f"active {list(registry.active_layers)}, participants {nodes}, "
+                f"manager {registry.manager_id} (recovering: {registry.recovering})"
             )
         time.sleep(0.05)
 

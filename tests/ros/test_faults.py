@@ -77,11 +77,23 @@ def test_restarted_manager_keeps_epochs_monotonic_and_the_active_set(
     assert second.epoch == before.epoch + 1
     assert list(second.active_layers) == ["Outdoor", "Night", "Gps"]
 
-    # 2. Killed and restarted without memory: the participants remember.
-    processes.children[-1].signal(signal.SIGKILL)
-    processes.children[-1].wait_exit()
-    processes.manager("--liveness-timeout", "1.0", name="m3")
-    third = wait_registry(client, lambda r: r.epoch > second.epoch, what="recovered state")
+    # 2. Killed and restarted without memory: the participants remember (once they have
+    # applied the state: without a state file, an epoch that reached nobody is forgotten).
+    wait_registry(
+        client,
+        lambda r: [p.applied_epoch for p in r.participants] == [second.epoch] * 3,
+        what="participants on the recovered state",
+    )
+    second_manager = processes.children[-1]
+    second_manager.signal(signal.SIGKILL)
+    second_manager.wait_exit()
+    third_manager = processes.manager("--liveness-timeout", "1.0", name="m3")
+    try:
+        third = wait_registry(client, lambda r: r.epoch > second.epoch, what="recovered state")
+    except AssertionError as error:
+        logs = "\n".join(f"--- {c.name}:\n{c.output()}" for c in processes.children[3:])
+        raise AssertionError(f"{error}\n{logs}") from None
+    del third_manager
     assert third.epoch == second.epoch + 1
     assert list(third.active_layers) == ["Outdoor", "Night", "Gps"]
     assert "recovered from /r" in third.reason

@@ -127,6 +127,8 @@ def test_critical_section_delays_the_acknowledgement(
 def test_rapid_activations_from_two_clients_converge_without_regression(
     system: RunningSystem, client: LayerClient, processes: ProcessGroup
 ) -> None:
+    watch = processes.start("watch", ["-m", "contextros", "watch", "--json", "--duration", "60"])
+    watch.wait_for(lambda events: any(e["event"] == "current" for e in events), 10, "watching")
     script = str(CLIENT_SCRIPT)
     location = processes.start(
         "client-location",
@@ -148,9 +150,12 @@ def test_rapid_activations_from_two_clients_converge_without_regression(
         epochs = [e["epoch"] for e in child.applied()]
         assert all(a < b for a, b in itertools.pairwise(epochs)), f"{child.name} regressed"
         assert child.applied()[-1]["active"] == list(final.active_layers)
+    watch.wait_for(lambda events: any(e.get("epoch") == final.epoch for e in events), 5, "final")
+    seen = [e["epoch"] for e in watch.events if e["event"] in ("current", "state")]
+    assert all(a < b for a, b in itertools.pairwise(seen)), "the watcher saw the epoch go down"
     wait_registry(
         client,
-        lambda r: all(p.applied_epoch == final.epoch for p in r.participants),
+        lambda r: [p.applied_epoch for p in r.participants] == [final.epoch] * 3,
         what="every participant's acknowledgement of the final epoch",
     )
 

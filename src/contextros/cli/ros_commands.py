@@ -348,9 +348,13 @@ def run_watch(args: argparse.Namespace) -> int:
             del waiting[msg.epoch]
 
     def on_status(msg: Any) -> None:
-        last_heard[msg.node] = time.monotonic()
         if msg.leaving:
-            last_heard.pop(msg.node, None)
+            if last_heard.pop(msg.node, None) is not None:
+                _print_watch(args.json, {"event": "node-left", "node": msg.node})
+        else:
+            if msg.node not in live_nodes():
+                _print_watch(args.json, {"event": "node", "node": msg.node})
+            last_heard[msg.node] = time.monotonic()
         applied[msg.node] = msg.applied_epoch
         for epoch, (published, count, pending) in sorted(waiting.items()):
             if msg.applied_epoch >= epoch or msg.leaving:
@@ -383,6 +387,9 @@ def _report_applied(as_json: bool, published: float, epoch: int, nodes: int) -> 
 def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
     if as_json:
         print(json.dumps(record), flush=True)
+    elif record["event"] in ("node", "node-left"):
+        verb = "is here" if record["event"] == "node" else "left"
+        print(f"node {record['node']} {verb}", flush=True)
     elif record["event"] in ("current", "state"):
         active = ", ".join(record["active"]) or "none"
         who = f"{record['requester'] or '?'}: {record['reason'] or '-'}"

@@ -23,6 +23,7 @@ class ParticipantReport:
     layers: tuple[LayerDeclaration, ...] = ()
     applied_epoch: int = 0
     active: tuple[str, ...] = ()
+    applied_manager_id: str = ""
     in_critical_section: bool = False
     pending_epoch: int = 0
     failed_epoch: int = 0

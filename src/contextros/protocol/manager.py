@@ -170,6 +170,14 @@ class ManagerProtocol:
             if known is not None and known.report.incarnation == report.incarnation:
                 actions += self._drop(report.node, "left", now)
             return actions
+        if (
+            known is not None
+            and known.report.incarnation == report.incarnation
+            and report.applied_epoch < known.report.applied_epoch
+        ):
+            # A stale report (a node never goes back): it only proves the node is alive.
+            known.last_heard = now
+            return actions
         record = ParticipantRecord(report, last_heard=now)
         if known is not None:
             record.retired = known.retired
@@ -189,7 +197,7 @@ class ManagerProtocol:
                     self._recovery_limit,
                 )
         self._participants[report.node] = record
-        if not self.recovering and report.applied_epoch > self._state.epoch:
+        if not self.recovering and self._is_ahead(report):
             actions += self._overtake(report, now)
         actions += self._settle_pending(now)
         return actions
@@ -237,6 +245,14 @@ class ManagerProtocol:
             actions += self._execute(command, received)
         self._queued.clear()
         return actions
+
+    def _is_ahead(self, report: ParticipantReport) -> bool:
+        """The node applied a state this manager did not publish, numbered like ours or higher
+        (this manager restarted without memory of it)."""
+        if report.applied_epoch > self._state.epoch:
+            return True
+        foreign = report.applied_manager_id not in ("", self.settings.manager_id)
+        return report.applied_epoch == self._state.epoch > 0 and foreign
 
     def _overtake(self, report: ParticipantReport, now: float) -> list[ManagerAction]:
         """A participant knows a newer epoch than ours: jump past it, never below."""

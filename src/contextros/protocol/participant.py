@@ -33,6 +33,7 @@ class ParticipantProtocol:
         self.layers = layers
         self.heartbeat_period = heartbeat_period
         self.applied_epoch = 0
+        self.applied_manager_id = ""
         self.active: tuple[str, ...] = ()
         self.pending_epoch = 0
         self.failed_epoch = 0
@@ -62,6 +63,7 @@ class ParticipantProtocol:
             layers=self.layers,
             applied_epoch=self.applied_epoch,
             active=self.active,
+            applied_manager_id=self.applied_manager_id,
             in_critical_section=self.in_critical_section,
             pending_epoch=self.pending_epoch if self.deferring else 0,
             failed_epoch=self.failed_epoch,
@@ -84,6 +86,7 @@ class ParticipantProtocol:
         if state.epoch <= self.applied_epoch:
             return []
         self.applied_epoch = state.epoch
+        self.applied_manager_id = state.manager_id
         self.active = state.active
         return [self._send(now)]
 
