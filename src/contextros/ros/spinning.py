@@ -7,8 +7,12 @@ decisive configuration too, as they must: it is one process).
 from __future__ import annotations
 
 import contextlib
+import signal
+import threading
 import time
 from collections.abc import Callable, Sequence
+from types import FrameType
+from typing import Any
 
 import rclpy
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -26,14 +30,17 @@ def spin_nodes(
 ) -> None:
     """Spin `nodes` in one single-threaded executor until shutdown, `until()` or `timeout`.
 
-    SIGINT and SIGTERM end the spin quietly (rclpy reports them as KeyboardInterrupt or
-    ExternalShutdownException); nodes are destroyed on the way out, so context nodes say
-    goodbye to the manager when they still can.
+    SIGINT and SIGTERM end the spin quietly, and the nodes are destroyed on the way out
+    while ROS still works, so context nodes tell the manager they leave (it drops them at
+    once instead of after the liveness timeout). To that end, when called in the main
+    thread, the signals are caught here for the duration of the spin, before rclpy's
+    handler would shut the context down.
     """
     executor = SingleThreadedExecutor()
     for node in nodes:
         executor.add_node(node)
     deadline = None if timeout is None else time.monotonic() + timeout
+    previous = _catch_signals()
     try:
         while rclpy.ok():
             if until is not None and until():
@@ -52,3 +59,27 @@ def spin_nodes(
             with contextlib.suppress(Exception):
                 node.destroy_node()
         executor.shutdown(timeout_sec=0.5)
+        _restore_signals(previous)
+
+
+_Handlers = dict[signal.Signals, Any]
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    del signum, frame
+    raise KeyboardInterrupt
+
+
+def _catch_signals() -> _Handlers:
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    previous: _Handlers = {}
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        previous[signum] = signal.signal(signum, _interrupt)
+    return previous
+
+
+def _restore_signals(previous: _Handlers) -> None:
+    for signum, handler in previous.items():
+        # None: a handler installed outside Python (rclpy's); SIG_DFL then, as ours is gone.
+        signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
