@@ -24,17 +24,19 @@ class LayerState:
     active: tuple[str, ...] = ()
     requester: str = ""
     reason: str = ""
-    stamp: float = 0.0
+    # When it was decided, on the clock of whoever produced this value (protocol time in
+    # the manager, wall-clock time once it crossed the wire or a file); not part of identity.
+    stamp: float = field(default=0.0, compare=False)
     manager_id: str = field(default="", compare=False)
 
-    def to_json(self) -> str:
+    def to_json(self, wall_time: float | None = None) -> str:
         return json.dumps(
             {
                 "epoch": self.epoch,
                 "active": list(self.active),
                 "requester": self.requester,
                 "reason": self.reason,
-                "stamp": self.stamp,
+                "stamp": self.stamp if wall_time is None else wall_time,
             },
             indent=2,
         )

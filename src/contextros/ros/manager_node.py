@@ -66,7 +66,7 @@ class StateFile:
         self.path.parent.mkdir(parents=True, exist_ok=True)
         partial = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         with partial.open("w", encoding="utf-8") as stream:
-            stream.write(state.to_json())
+            stream.write(state.to_json(wall_time=time.time()))
             stream.flush()
             os.fsync(stream.fileno())
         partial.replace(self.path)
