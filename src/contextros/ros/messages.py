@@ -8,7 +8,7 @@ from typing import Any
 from builtin_interfaces.msg import Time  # type: ignore[import-untyped]
 from contextros_interfaces.msg import LayerInfo, ParticipantInfo, ParticipantStatus
 from contextros_interfaces.msg import LayerState as LayerStateMsg
-from contextros_interfaces.srv import Activate, QueryRegistry
+from contextros_interfaces.srv import Activate
 
 from contextros.protocol import (
     ActivationCommand,
@@ -177,6 +177,3 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
     response.manager_id = manager_id
     response.recovering = view.recovering
     return response
-
-
-QueryRequest = QueryRegistry.Request
