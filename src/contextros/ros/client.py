@@ -15,8 +15,14 @@ from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
 from contextros.ros.messages import command_to_request, result_from_response
 from contextros.ros.topics import ACTIVATE_SERVICE, QUERY_SERVICE
 
-# Beyond the activation's own timeout: discovery of the reply and a slow manager.
-REPLY_MARGIN = 5.0
+# How long to wait for an answer beyond the activation's own timeout, and how often to ask.
+# A reply can be lost while the manager's reply writer has not yet matched a new client's
+# reader (a known Fast DDS discovery race, ros2/rmw_fastrtps#842); commands describe a
+# target configuration, so asking again is safe: a repeated command changes nothing more.
+REPLY_MARGIN = 2.0
+ATTEMPTS = 3
+# A synchronous command without a timeout waits the manager's default (5 s unless set).
+ASSUMED_DEFAULT_TIMEOUT = 10.0
 
 
 def default_requester() -> str:
@@ -79,15 +85,21 @@ class LayerClient:
         reason: str = "",
     ) -> ActivationResult:
         """Send one activation command and wait (spinning the node) for the manager's answer."""
-        future = self.request_async(
-            activate, deactivate, synchronous=synchronous, timeout=timeout, reason=reason
-        )
-        reply_timeout = (timeout or 30.0) + REPLY_MARGIN
-        rclpy.spin_until_future_complete(self.node, future, timeout_sec=reply_timeout)
-        if not future.done():
+        if synchronous:
+            wait = (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
+        else:
+            wait = REPLY_MARGIN
+        for _ in range(ATTEMPTS):
+            future = self.request_async(
+                activate, deactivate, synchronous=synchronous, timeout=timeout, reason=reason
+            )
+            rclpy.spin_until_future_complete(self.node, future, timeout_sec=wait)
+            if future.done():
+                return result_from_response(future.result())
             self._activate.remove_pending_request(future)
-            raise ManagerError(f"the Layer manager did not answer within {reply_timeout:g} s")
-        return result_from_response(future.result())
+        raise ManagerError(
+            f"the Layer manager did not answer {ATTEMPTS} attempts of {wait:g} s each"
+        )
 
     def activate(
         self, *layers: str, synchronous: bool = True, timeout: float = 0.0
@@ -101,12 +113,14 @@ class LayerClient:
         return _checked(self.request((), layers, synchronous=synchronous, timeout=timeout))
 
     def query(self, timeout: float = 5.0) -> Any:
-        future = self._query.call_async(QueryRegistry.Request())
-        rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout)
-        if not future.done():
+        """The manager's registry (`QueryRegistry` response); asks again if a reply is lost."""
+        for _ in range(ATTEMPTS):
+            future = self._query.call_async(QueryRegistry.Request())
+            rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout / ATTEMPTS)
+            if future.done():
+                return future.result()
             self._query.remove_pending_request(future)
-            raise ManagerError(f"the Layer manager did not answer a query within {timeout:g} s")
-        return future.result()
+        raise ManagerError(f"the Layer manager did not answer a query within {timeout:g} s")
 
 
 def _checked(result: ActivationResult) -> ActivationResult:

@@ -13,6 +13,7 @@ import dataclasses
 import os
 import time
 import uuid
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -82,8 +83,9 @@ class _DeferredResponses:
     synchronous activation waits for its timeout.)
     """
 
-    def __init__(self, service: Any) -> None:
+    def __init__(self, service: Any, log_lost_reply: Callable[[Exception], object]) -> None:
         self._service = service
+        self._log_lost_reply = log_lost_reply
         self._send = service.send_response
         self._open: dict[int, Any] = {}  # request id -> response object
         self._headers: dict[int, Any] = {}
@@ -102,14 +104,22 @@ class _DeferredResponses:
         del self._ids[id(response)]
         header = self._headers.pop(request_id, None)
         if header is not None:  # else the executor has not sent it yet: it will, filled in
-            self._send(response, header)
+            self._send_safely(response, header)
 
     def _send_or_hold(self, response: Any, header: Any) -> None:
         request_id = self._ids.get(id(response))
         if request_id is None:
-            self._send(response, header)
+            self._send_safely(response, header)
         else:
             self._headers[request_id] = header
+
+    def _send_safely(self, response: Any, header: Any) -> None:
+        # A client that vanished, or one not fully discovered yet, must not stop the manager;
+        # clients ask again when a reply does not come (see LayerClient).
+        try:
+            self._send(response, header)
+        except Exception as error:  # rclpy raises its RCLError, not exported as a type
+            self._log_lost_reply(error)
 
 
 class LayerManagerNode(Node):
@@ -136,7 +146,9 @@ class LayerManagerNode(Node):
         self._state_pub = self.create_publisher(LayerStateMsg, STATE_TOPIC, STATE_QOS)
         self.create_subscription(ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
         activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
-        self._responses = _DeferredResponses(activate)
+        self._responses = _DeferredResponses(
+            activate, lambda error: self.get_logger().warning(f"a reply was lost: {error}")
+        )
         self.create_service(QueryRegistry, QUERY_SERVICE, self._on_query)
         self.create_timer(tick_period, self._on_tick)
         origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
