@@ -45,9 +45,14 @@ class ContextDetector(Node):
             self.observed, self.readings = seen, 1
 
     def wait_for_nodes(self, count: int, timeout: float = 20.0) -> None:
+        """Until `count` context nodes joined and the manager has settled its first state
+        (a command sent while it still recovers would wait for that, and look slow)."""
         self.client.wait_for_manager(timeout)
         deadline = time.monotonic() + timeout
-        while len(self.client.query().participants) < count:
+        while True:
+            registry = self.client.query()
+            if len(registry.participants) >= count and not registry.recovering:
+                return
             if time.monotonic() > deadline:
                 raise TimeoutError(f"fewer than {count} context nodes joined in {timeout:g} s")
             time.sleep(0.1)
