@@ -18,7 +18,7 @@ $(VENV)/.stamp-base: pyproject.toml
 	touch $@
 
 # The rosidl interface package, built against the wheels into the venv prefix.
-$(VENV)/.stamp-interfaces: $(VENV)/.stamp-base $(wildcard interfaces/contextros_interfaces/*/*) interfaces/build.sh
+$(VENV)/.stamp-interfaces: $(VENV)/.stamp-base $(shell find interfaces/contextros_interfaces interfaces/cmake -type f) interfaces/build.sh
 	bash interfaces/build.sh $(abspath $(VENV))
 	touch $@
 

@@ -259,3 +259,12 @@ def test_decisive_switch_inside_an_open_scope_shows_through_at_once() -> None:
         activate(Indoor)
         assert mode() == "night/indoor"
     assert mode() == "indoor"
+
+
+def test_in_critical_section_reports_open_sections() -> None:
+    from contextros import in_critical_section
+
+    assert not in_critical_section()
+    with critical():
+        assert in_critical_section()
+    assert not in_critical_section()

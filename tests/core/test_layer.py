@@ -46,3 +46,12 @@ def test_unknown_layer_error_names_the_layer_and_the_known_ones() -> None:
 def test_bad_definitions_are_rejected_with_the_reason(kwargs: dict, message: str) -> None:
     with pytest.raises(LayerDefinitionError, match=message):
         Layer(**kwargs)
+
+
+def test_defined_layers_lists_current_definitions() -> None:
+    from contextros import defined_layers
+
+    Layer("Listed", group="first")
+    Layer("Listed", group="second")
+    listed = [layer for layer in defined_layers() if layer.name == "Listed"]
+    assert len(listed) == 1 and listed[0].group == "second"

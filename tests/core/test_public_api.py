@@ -28,6 +28,8 @@ EXPECTED = {
     "active_layers",
     "critical",
     "current_epoch",
+    "defined_layers",
+    "in_critical_section",
     "deactivate",
     "deactivated",
     "layer_named",

@@ -8,11 +8,12 @@ from contextros.core.activation import (
     current_epoch,
     deactivate,
     deactivated,
+    in_critical_section,
     set_active,
     subscribe,
     switch,
 )
-from contextros.core.layer import Layer, layer_named
+from contextros.core.layer import Layer, defined_layers, layer_named
 from contextros.core.layered import LayeredFunction, layered, layered_function_of
 from contextros.core.linking import proceed
 from contextros.core.runtime import SwitchEvent, SwitchResult
@@ -29,6 +30,8 @@ __all__ = [
     "current_epoch",
     "deactivate",
     "deactivated",
+    "defined_layers",
+    "in_critical_section",
     "layer_named",
     "layered",
     "layered_function_of",

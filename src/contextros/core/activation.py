@@ -15,7 +15,6 @@ from contextlib import AbstractContextManager, contextmanager
 from contextros.core.configuration import Configuration, plan, validate
 from contextros.core.layer import Layer, resolve
 from contextros.core.runtime import RUNTIME, SwitchEvent, SwitchResult
-from contextros.errors import RelationError
 
 LayerLike = Layer | str
 
@@ -65,6 +64,11 @@ def active_layers() -> Configuration:
     return RUNTIME.effective()
 
 
+def in_critical_section() -> bool:
+    """Whether a critical section is open somewhere in the process (switches are deferred)."""
+    return RUNTIME.in_critical_section
+
+
 def current_epoch() -> int:
     """How many decisive switches have applied in this process."""
     return RUNTIME.epoch
@@ -112,7 +116,6 @@ def subscribe(observer: Callable[[SwitchEvent], object]) -> Callable[[], None]:
 
 
 __all__ = [
-    "RelationError",
     "activate",
     "activated",
     "active_layers",
@@ -120,6 +123,7 @@ __all__ = [
     "current_epoch",
     "deactivate",
     "deactivated",
+    "in_critical_section",
     "set_active",
     "subscribe",
     "switch",

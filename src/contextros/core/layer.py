@@ -118,6 +118,11 @@ def layer_named(name: str) -> Layer:
     return registry.lookup(name)
 
 
+def defined_layers() -> tuple[Layer, ...]:
+    """Every layer defined in this process (the current definition of each name), by name."""
+    return tuple(registry.lookup(name) for name in registry.names())
+
+
 def resolve(layer: Layer | str) -> Layer:
     """A layer given as an object or a name, as its current definition."""
     if isinstance(layer, Layer):

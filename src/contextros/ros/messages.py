@@ -5,7 +5,7 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
-from builtin_interfaces.msg import Time  # type: ignore[import-untyped]
+from builtin_interfaces.msg import Time
 from contextros_interfaces.msg import LayerInfo, ParticipantInfo, ParticipantStatus
 from contextros_interfaces.msg import LayerState as LayerStateMsg
 from contextros_interfaces.srv import Activate

@@ -21,9 +21,15 @@ from contextros_interfaces.msg import LayerState as LayerStateMsg
 from contextros_interfaces.msg import ParticipantStatus
 from rclpy.node import Node
 
-from contextros.core import Layer, SwitchResult, active_layers, layer_named, set_active
-from contextros.core import registry as layer_registry
-from contextros.core.runtime import RUNTIME
+from contextros.core import (
+    Layer,
+    SwitchResult,
+    active_layers,
+    defined_layers,
+    in_critical_section,
+    layer_named,
+    set_active,
+)
 from contextros.errors import LayerError, UnknownLayerError
 from contextros.protocol import (
     DEFAULT_HEARTBEAT_PERIOD,
@@ -79,7 +85,7 @@ class ContextParticipant:
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
     ) -> None:
         self.node = node
-        names = layer_registry.names() if layers is None else layers
+        names = defined_layers() if layers is None else layers
         declarations = tuple(
             declaration_of(layer if isinstance(layer, Layer) else layer_named(layer))
             for layer in names
@@ -142,7 +148,7 @@ class ContextParticipant:
     # -- actions ----------------------------------------------------------------------------
 
     def _run(self, actions: list[ParticipantAction]) -> None:
-        self.protocol.critical_section_open = RUNTIME.in_critical_section
+        self.protocol.critical_section_open = in_critical_section()
         for action in actions:
             if isinstance(action, ApplyState):
                 self._apply(action.state)
