@@ -146,14 +146,15 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             f"{row['paper_us']} | {row['paper_lines']} |"
         )
     table.append(
-        f"| **ContextROS / plain** | **{time_ratio:.3f}** | | | **{lines_ratio:.2f}** | "
-        f"{paper_time:.3f} | {paper_lines:.2f} |"
+        f"| **ContextROS / plain** | **{time_ratio:.3f}** | | | **{lines_ratio:.3f}** | "
+        f"{paper_time:.3f} | {paper_lines:.3f} |"
     )
     verdicts = [
         "",
         f"- Time ratio {time_ratio:.3f}, target <= {TIME_TARGET}: "
         f"{'met' if time_ratio <= TIME_TARGET else 'MISSED'}.",
-        f"- Lines ratio {lines_ratio:.2f}, target <= {LINES_TARGET}: "
+        f"- Lines ratio {lines_ratio:.3f} ({ours['lines']} / {plain['lines']}), "
+        f"target <= {LINES_TARGET}: "
         f"{'met' if lines_ratio <= LINES_TARGET else 'MISSED'}.",
     ]
     if lines_ratio > LINES_TARGET:

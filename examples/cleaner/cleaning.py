@@ -10,11 +10,10 @@ import sys
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import String
 
 from contextros import active_layers, load
-from contextros.ros import ContextNode
+from contextros.ros import ContextNode, spin_nodes
 
 location = load(Path(__file__).with_name("location.layers"))
 
@@ -37,15 +36,8 @@ class CleaningNode(ContextNode):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = CleaningNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with rclpy.init(args=sys.argv):
+        spin_nodes([CleaningNode()])  # ends quietly on Ctrl-C, after telling the manager
 
 
 if __name__ == "__main__":

@@ -14,11 +14,10 @@ from typing import Any
 
 import rclpy
 from geometry_msgs.msg import PoseStamped, TwistStamped
-from rclpy.executors import ExternalShutdownException
 from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 
 from contextros import active_layers, load
-from contextros.ros import ContextNode
+from contextros.ros import ContextNode, spin_nodes
 from examples.cleaner.gps_frame import to_local
 
 location = load(Path(__file__).with_name("location.layers"))
@@ -68,15 +67,8 @@ class LocalizationNode(ContextNode):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = LocalizationNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with rclpy.init(args=sys.argv):
+        spin_nodes([LocalizationNode()])  # ends quietly on Ctrl-C, after telling the manager
 
 
 if __name__ == "__main__":

@@ -130,15 +130,11 @@ class WorldNode(Node):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = WorldNode()
     try:
-        rclpy.spin(node)
+        with rclpy.init(args=sys.argv):
+            rclpy.spin(WorldNode())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":

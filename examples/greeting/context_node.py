@@ -11,11 +11,10 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import rclpy
-from rclpy.executors import ExternalShutdownException
 from std_msgs.msg import String
 
 from contextros import active_layers, load
-from contextros.ros import ContextNode
+from contextros.ros import ContextNode, spin_nodes
 
 greeting = load(Path(__file__).with_name("greeting.layers"))
 
@@ -39,15 +38,8 @@ class GreetingNode(ContextNode):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = GreetingNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with rclpy.init(args=sys.argv):
+        spin_nodes([GreetingNode()])  # ends quietly on Ctrl-C, after telling the manager
 
 
 if __name__ == "__main__":

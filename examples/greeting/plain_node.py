@@ -53,15 +53,11 @@ class GreetingNode(Node):
 
 
 def main() -> None:
-    rclpy.init(args=sys.argv)
-    node = GreetingNode()
     try:
-        rclpy.spin(node)
+        with rclpy.init(args=sys.argv):
+            rclpy.spin(GreetingNode())
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
 
 
 if __name__ == "__main__":
