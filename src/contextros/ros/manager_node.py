@@ -143,6 +143,9 @@ class LayerManagerNode(Node):
         saved = self.state_file.load() if self.state_file else None
         self.protocol = ManagerProtocol(time.monotonic(), self.settings, saved)
         self._next_request_id = 0
+        # Log lines of the activation path wait until its reply is sent (or the next tick):
+        # an rclpy log call costs ~0.3 ms, longer than a whole topic round trip.
+        self._postponed_logs: list[str] = []
         self._state_pub = self.create_publisher(LayerStateMsg, STATE_TOPIC, STATE_QOS)
         self.create_subscription(ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
         activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
@@ -166,6 +169,12 @@ class LayerManagerNode(Node):
 
     def _on_tick(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))
+        self._flush_logs()
+
+    def _flush_logs(self) -> None:
+        logs, self._postponed_logs = self._postponed_logs, []
+        for line in logs:
+            self.get_logger().info(line)
 
     def _on_activate(self, request: Any, response: Any) -> Any:
         self._next_request_id += 1
@@ -198,12 +207,13 @@ class LayerManagerNode(Node):
                 if self.state_file:
                     self._save(action.state)
                 self._state_pub.publish(state_to_msg(action.state, time.time()))
-                self.get_logger().info(
+                self._postponed_logs.append(
                     f"epoch {action.state.epoch}: [{', '.join(action.state.active)}] "
                     f"({action.state.requester or '?'}: {action.state.reason or '-'})"
                 )
             elif isinstance(action, Reply):
                 self._responses.answer(action.request_id, action.result)
+                self._flush_logs()
             elif isinstance(action, ParticipantJoined):
                 verb = "restarted" if action.restarted else "joined"
                 self.get_logger().info(f"participant {action.node} {verb}")
