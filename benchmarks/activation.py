@@ -14,11 +14,12 @@ plain-ROS baselines. Rounds alternate the series below; each switches Indoor <->
 - parameter, one by one / all in parallel: what a ROS developer would otherwise do: the
   caller sets the parameter on every node through its `set_parameters` service, waiting
   for each reply before the next call, or sending all calls at once; until every reply.
-- ... shared participant: the same, but each process has one participant (attached to its
-  first node) instead of one per node. The layer configuration is per process (the COP
-  core's decisive activation is process-wide), so when it applies a state, every node of
-  its process has the new layers at that instant; the manager waits for one
-  acknowledgement per process. Same nodes, same parameter services, fewer messages.
+- The context nodes of a process share one participant (`ContextNode`'s default): the
+  layer configuration is per process (the COP core's decisive activation is
+  process-wide), so when it applies a state every node of its process has the new layers
+  at that instant, and the manager waits for one acknowledgement per process.
+  "..., one participant per node" rows: the same with `share_participant=False`, so that
+  every node applies and acknowledges on its own. Same nodes, same parameter services.
 - floor: one topic round trip between two processes (the caller's ping, an echo node in
   the first worker process, its pong), measured in the same rounds, under the same load.
 
@@ -51,13 +52,13 @@ ROUNDS = 40  # per series and N
 BENCH_DOMAIN_ID = 78
 FLOOR = "floor: topic round trip"
 MODES = ("asynchronous", "synchronous", "parameter, one by one", "parameter, parallel", FLOOR)
-SHARED = ", shared participant"
+PER_NODE = ", one participant per node"
 SERIES = (
     "asynchronous",
     "synchronous",
     "synchronous, caller",
-    "asynchronous" + SHARED,
-    "synchronous" + SHARED,
+    "asynchronous" + PER_NODE,
+    "synchronous" + PER_NODE,
     *MODES[2:],
 )
 PINGS_PER_ROUND = 5
@@ -73,8 +74,8 @@ WHY_MISSED = {
         " executors), a parallel parameter call one request and one response: the same number"
         " of Python callbacks, which dominate here (applying the layers themselves takes about"
         " 40 µs per node). The broadcast saves the caller's N requests, not the nodes' and the"
-        " manager's work. The shared-participant rows show what one acknowledgement per"
-        " process instead of per node buys."
+        " manager's work; sharing one participant per process (the default) is what saves"
+        " it."
     ),
     "floor": (
         "A synchronous activation is a topic round trip plus work the floor has not: the"
@@ -87,8 +88,9 @@ WHY_MISSED = {
         " its own state callback and sends its own acknowledgement, the manager handles each"
         " (about 0.5-0.8 ms of CPU per participant in all), and from N=16 on there are more"
         " worker processes than the machine's two cores, shared with other jobs (the floor"
-        " row shows the load at each N). With a shared participant the growth is that of"
-        " the processes alone. The paper's prototype grew with N as well."
+        " row shows the load at each N). With one participant per process (the default)"
+        " the growth is that of the processes alone. The paper's prototype grew with N as"
+        " well."
     ),
 }
 LOCATION_LAYERS = Path(__file__).resolve().parent.parent / "examples/cleaner/location.layers"
@@ -98,11 +100,10 @@ CONTEXTS = ("Indoor", "Outdoor")
 # -- the worker processes ---------------------------------------------------------------------
 
 
-def worker(names: list[str], echo: bool, shared: bool) -> None:
+def worker(names: list[str], echo: bool, per_node: bool) -> None:
     """Host context nodes (and the floor's echo) until interrupted, then print apply times.
 
-    `shared`: only the first node is a participant; the others are plain nodes that follow
-    the process-wide layer configuration it applies, at the same instant.
+    They share one participant (the default), or with `per_node` each has its own.
     """
     import rclpy
     from rcl_interfaces.msg import SetParametersResult
@@ -132,14 +133,9 @@ def worker(names: list[str], echo: bool, shared: bool) -> None:
         return record
 
     nodes: list[Node] = []
-    for index, name in enumerate(names):
-        node: Node
-        if index == 0 or not shared:
-            node = participant = ContextNode(name, layers=location.__layers__)
-            participant.context_participant.add_listener(recorder(applied[name]))
-        else:
-            node = rclpy.create_node(name)
-            participant.context_participant.add_listener(recorder(applied[name]))
+    for name in names:
+        node = ContextNode(name, layers=location.__layers__, share_participant=not per_node)
+        node.context_participant.add_listener(recorder(applied[name]))
         node.add_on_set_parameters_callback(check)
         node.declare_parameter("location", "Indoor")
         nodes.append(node)
@@ -274,19 +270,19 @@ class Caller:
 
 
 def _start_workers(
-    launch: Any, count: int, per_process: int, shared: bool
+    launch: Any, count: int, per_process: int, per_node: bool
 ) -> tuple[list[str], list[str]]:
     """Start the workers; return the names of all nodes and of the participants among them."""
     processes = math.ceil(count / per_process)
     # Names unique per run: a node of the previous run still leaving cannot be mistaken for one.
-    variant = "s" if shared else "p"
+    variant = "p" if per_node else "s"
     names = [f"bench_{count}{variant}_n{index:02d}" for index in range(count)]
     participants = []
     for process in range(processes):
         own = names[process::processes]
-        participants += own[:1] if shared else own
+        participants += own if per_node else own[:1]
         options = ["--echo"] if process == 0 else []
-        options += ["--shared"] if shared else []
+        options += ["--per-node"] if per_node else []
         launch.start_module(f"worker{process}", "benchmarks.activation", "worker", *own, *options)
     return names, participants
 
@@ -317,13 +313,13 @@ def _collect_apply_times(launch: Any) -> dict[str, dict[int, float]]:
 
 
 def measure(
-    count: int, caller: Caller, launch: Any, rounds: int, per_process: int, shared: bool
+    count: int, caller: Caller, launch: Any, rounds: int, per_process: int, per_node: bool
 ) -> dict[str, list[float]]:
     """Seconds per activation, per series, for `count` nodes (workers started and stopped).
 
-    With `shared`, only the two activation modes are measured (the rest does not change).
+    With `per_node`, only the two activation modes are measured (the rest does not change).
     """
-    names, participants = _start_workers(launch, count, per_process, shared)
+    names, participants = _start_workers(launch, count, per_process, per_node)
     _wait_for_lines(launch, "ready", math.ceil(count / per_process))
     caller.wait_for_nodes(names, participants)
     caller.spin_until(lambda: caller.ping.get_subscription_count() > 0)
@@ -332,7 +328,7 @@ def measure(
     times: dict[str, list[float]] = {series: [] for series in SERIES}
     async_epochs: list[int] = []
     active = caller.active_context()
-    modes = MODES[:2] if shared else MODES
+    modes = MODES[:2] if per_node else MODES
     for index in range(rounds):
         for mode in modes if index % 2 else reversed(modes):
             target = CONTEXTS[1 - CONTEXTS.index(active)]
@@ -370,8 +366,8 @@ def measure(
         if published is None or None in stamps:
             continue  # a lost sample (reported as lost), never a guessed one
         times["asynchronous"].append(max(s for s in stamps if s is not None) - published)
-    if shared:
-        return {mode + SHARED: times[mode] for mode in modes}
+    if per_node:
+        return {mode + PER_NODE: times[mode] for mode in modes}
     return times
 
 
@@ -394,9 +390,9 @@ def run(
             for count in node_counts:
                 print(f"  activation: {count} nodes", flush=True)
                 times: dict[str, list[float]] = {}
-                for shared in (False, True):
+                for per_node in (False, True):
                     try:
-                        times |= measure(count, caller, launch, rounds, per_process, shared)
+                        times |= measure(count, caller, launch, rounds, per_process, per_node)
                     except (RuntimeError, TimeoutError, LayerError) as error:
                         # Not measured (reported as lost), rather than no report at all.
                         print(f"  {count} nodes: {error}", file=sys.stderr, flush=True)
@@ -466,10 +462,10 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         lines.append(f"| {series} | " + " | ".join(cells) + " |")
     sync_64, sync_1 = _median(rows, "synchronous", 64), _median(rows, "synchronous", 1)
     async_64, async_1 = _median(rows, "asynchronous", 64), _median(rows, "asynchronous", 1)
-    shared_64 = _median(rows, "synchronous" + SHARED, 64)
-    shared_1 = _median(rows, "synchronous" + SHARED, 1)
-    shared_async_64 = _median(rows, "asynchronous" + SHARED, 64)
-    shared_async_1 = _median(rows, "asynchronous" + SHARED, 1)
+    per_node_64 = _median(rows, "synchronous" + PER_NODE, 64)
+    per_node_1 = _median(rows, "synchronous" + PER_NODE, 1)
+    per_node_async_64 = _median(rows, "asynchronous" + PER_NODE, 64)
+    per_node_async_1 = _median(rows, "asynchronous" + PER_NODE, 1)
     parallel_64 = _median(rows, "parameter, parallel", 64)
     checks = [
         (
@@ -482,15 +478,20 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         ("synchronous N=64 / N=1", sync_64 / sync_1, 8.0, "growth"),
         ("asynchronous N=64 / N=1", async_64 / async_1, 8.0, "growth"),
         (
-            "synchronous, shared participant at N=64 / parameter, parallel at N=64",
-            shared_64 / parallel_64,
+            "synchronous, one participant per node, at N=64 / parameter, parallel at N=64",
+            per_node_64 / parallel_64,
             0.5,
             "parallel",
         ),
-        ("synchronous, shared participant N=64 / N=1", shared_64 / shared_1, 8.0, "growth"),
         (
-            "asynchronous, shared participant N=64 / N=1",
-            shared_async_64 / shared_async_1,
+            "synchronous, one participant per node, N=64 / N=1",
+            per_node_64 / per_node_1,
+            8.0,
+            "growth",
+        ),
+        (
+            "asynchronous, one participant per node, N=64 / N=1",
+            per_node_async_64 / per_node_async_1,
             8.0,
             "growth",
         ),
@@ -518,7 +519,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     figure, axes = plt.subplots(figsize=(7, 4.5))
     for series in SERIES:
         points = sorted((r["nodes"], r["median_ms"]) for r in rows if r["series"] == series)
-        style = ":" if series == FLOOR else "--" if series.endswith(SHARED) else "-"
+        style = ":" if series == FLOOR else "--" if series.endswith(PER_NODE) else "-"
         axes.plot([n for n, _ in points], [m for _, m in points], style, marker="o", label=series)
     axes.set_xscale("log", base=2)
     axes.set_yscale("log")
@@ -540,9 +541,9 @@ def main(argv: list[str]) -> int:
         parser = argparse.ArgumentParser(description="activation benchmark: a worker process")
         parser.add_argument("names", nargs="*")
         parser.add_argument("--echo", action="store_true")
-        parser.add_argument("--shared", action="store_true")
+        parser.add_argument("--per-node", action="store_true")
         worker_args = parser.parse_args(argv[1:])
-        worker(worker_args.names, worker_args.echo, worker_args.shared)
+        worker(worker_args.names, worker_args.echo, worker_args.per_node)
         return 0
     parser = argparse.ArgumentParser(description="activation benchmark")
     parser.add_argument("--nodes", type=int, nargs="+", default=list(NODE_COUNTS))

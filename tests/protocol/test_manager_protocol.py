@@ -385,3 +385,31 @@ def test_a_stale_report_does_not_take_a_node_back() -> None:
     assert stale == []
     view = system.manager.registry(system.now + 0.1)
     assert next(p for p in view.participants if p.node == "/a").applied_epoch == 2
+
+
+def test_one_participant_speaks_for_the_other_nodes_of_its_process() -> None:
+    system = System(nodes=("/host", "/solo"))
+    system.feed(
+        system.manager.receive_status(report("/host", hosted=("/guest1", "/guest2")), system.now)
+    )
+    view = system.manager.registry(system.now)
+    assert {p.node: p.hosted for p in view.participants} == {
+        "/host": ("/guest1", "/guest2"),
+        "/solo": (),
+    }
+    system.command(1, activate=("Indoor",), synchronous=True)
+    assert not replies(system.ack("/solo"))  # still waiting for /host (and so its guests)
+    result = replies(system.ack("/host", hosted=("/guest1", "/guest2")))[1]
+    assert result.success and "applied by 4 node(s)" in result.message
+    assert result.acknowledged == ("/guest1", "/guest2", "/host", "/solo")
+
+
+def test_nodes_hosted_by_a_silent_participant_are_named_with_it() -> None:
+    system = System(nodes=("/host", "/solo"))
+    system.feed(system.manager.receive_status(report("/host", hosted=("/guest",)), system.now))
+    system.command(1, activate=("Night",), synchronous=True, timeout=1.0)
+    system.ack("/solo")
+    result = replies(system.advance(1.1))[1]
+    assert not result.success
+    assert result.not_acknowledged == ("/guest", "/host")
+    assert "/guest (hosted by /host, still on epoch" in result.message

@@ -77,3 +77,15 @@ def test_an_open_critical_section_is_reported_even_with_nothing_deferred() -> No
     (action,) = p.announce(0.0)
     assert isinstance(action, PublishStatus)
     assert action.report.in_critical_section and action.report.pending_epoch == 0
+
+
+def test_hosting_other_nodes_reannounces_with_their_layers() -> None:
+    from contextros.protocol import LayerDeclaration, ParticipantProtocol, PublishStatus
+
+    own = (LayerDeclaration("Indoor"),)
+    participant = ParticipantProtocol("/host", "1", own)
+    more = (LayerDeclaration("Indoor"), LayerDeclaration("Night"))
+    (action,) = participant.host(("/guest",), more, now=1.0)
+    assert isinstance(action, PublishStatus)
+    assert action.report.hosted == ("/guest",)
+    assert [d.name for d in action.report.layers] == ["Indoor", "Night"]

@@ -72,6 +72,7 @@ def main() -> None:
     parser.add_argument("--layers", default=",".join(LAYERS))
     parser.add_argument("--heartbeat", type=float, default=0.25)
     parser.add_argument("--stubborn", help="a layer whose on_deactivate hook always raises")
+    parser.add_argument("--also", help="a second context node in this process (it is hosted)")
     args = parser.parse_args()
     if args.stubborn:
         old = LAYERS[args.stubborn]
@@ -97,7 +98,10 @@ def main() -> None:
     node.context_participant.add_listener(on_applied)
     threading.Thread(target=read_commands, daemon=True).start()
     emit("ready", node=node.get_fully_qualified_name(), mode=cleaner.mode())
-    spin_nodes([node])
+    nodes = [node]
+    if args.also:
+        nodes.append(ContextNode(args.also, layers=["Night"]))
+    spin_nodes(nodes)
     rclpy.try_shutdown()
 
 

@@ -248,6 +248,7 @@ def _registry_as_dict(registry: Any) -> dict[str, Any]:
                 "in_critical_section": p.in_critical_section,
                 "silent_for": round(p.silent_for, 3),
                 "lagging": p.lagging,
+                "hosted_nodes": list(p.hosted_nodes),
             }
             for p in registry.participants
         ],
@@ -293,10 +294,12 @@ def _registry_as_text(registry: Any) -> str:
             "yes" if p["in_critical_section"] else "",
             f"{p['silent_for']:.1f} s",
             ", ".join(p["layers"]),
+            ", ".join(p["hosted_nodes"]),
         ]
         for p in data["participants"]
     ]
-    parts.append(_table(["NODE", "EPOCH", "STATE", "CRITICAL", "LAST HEARD", "LAYERS"], node_rows))
+    header = ["NODE", "EPOCH", "STATE", "CRITICAL", "LAST HEARD", "LAYERS", "ALSO FOR"]
+    parts.append(_table(header, node_rows))
     if data["dropped"]:
         parts += ["", f"dropped: {', '.join(data['dropped'])}"]
     return "\n".join(parts)

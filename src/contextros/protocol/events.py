@@ -29,6 +29,8 @@ class ParticipantReport:
     failed_epoch: int = 0
     error: str = ""
     leaving: bool = False
+    # Other nodes of the participant's process it speaks for (the configuration is per process).
+    hosted: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)

@@ -70,6 +70,7 @@ class ParticipantView:
     in_critical_section: bool
     silent_for: float
     lagging: bool
+    hosted: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,8 @@ class ManagerProtocol:
         self.settings = settings or ManagerSettings()
         self._state = saved_state or INITIAL_STATE
         self._participants: dict[str, ParticipantRecord] = {}
+        # The nodes each participant speaks for, kept past a drop to name them in answers.
+        self._hosted: dict[str, tuple[str, ...]] = {}
         self._pending: list[_PendingActivation] = []
         self._queued: list[tuple[ActivationCommand, float]] = []
         self._dropped: deque[str] = deque(maxlen=self.settings.keep_dropped)
@@ -149,6 +152,7 @@ class ManagerProtocol:
                 in_critical_section=record.report.in_critical_section,
                 silent_for=max(0.0, now - record.last_heard),
                 lagging=record.report.applied_epoch < self._state.epoch,
+                hosted=record.report.hosted,
             )
             for node, record in sorted(self._participants.items())
         )
@@ -197,6 +201,7 @@ class ManagerProtocol:
                     self._recovery_limit,
                 )
         self._participants[report.node] = record
+        self._hosted[report.node] = report.hosted
         if not self.recovering and self._is_ahead(report):
             actions += self._overtake(report, now)
         actions += self._settle_pending(now)
@@ -390,19 +395,26 @@ class ManagerProtocol:
         if timed_out:
             for node in pending.waiting:
                 reasons[node] = self._why_not_applied(node, pending.epoch)
+        # A participant speaks for the other nodes of its process: name them too.
+        for node, why in list(reasons.items()):
+            for hosted in self._hosted.get(node, ()):
+                reasons[hosted] = f"hosted by {node}, {why}"
+        acknowledged = {
+            name for node in pending.acknowledged for name in (node, *self._hosted.get(node, ()))
+        }
         elapsed = now - pending.started
         if reasons:
             listing = "; ".join(f"{node} ({why})" for node, why in sorted(reasons.items()))
             limit = f" within {pending.deadline - pending.started:g} s" if timed_out else ""
             message = f"epoch {pending.epoch} not acknowledged{limit} by {listing}"
         else:
-            message = f"epoch {pending.epoch} applied by {len(pending.acknowledged)} node(s)"
+            message = f"epoch {pending.epoch} applied by {len(acknowledged)} node(s)"
         result = ActivationResult(
             success=not reasons,
             message=message,
             epoch=pending.epoch,
             active=self._state.active,
-            acknowledged=tuple(sorted(pending.acknowledged)),
+            acknowledged=tuple(sorted(acknowledged)),
             not_acknowledged=tuple(sorted(reasons)),
             elapsed=elapsed,
         )

@@ -31,6 +31,7 @@ class ParticipantProtocol:
         self.node = node
         self.incarnation = incarnation
         self.layers = layers
+        self.hosted: tuple[str, ...] = ()
         self.heartbeat_period = heartbeat_period
         self.applied_epoch = 0
         self.applied_manager_id = ""
@@ -69,6 +70,7 @@ class ParticipantProtocol:
             failed_epoch=self.failed_epoch,
             error=self.error,
             leaving=leaving,
+            hosted=self.hosted,
         )
 
     # -- events -----------------------------------------------------------------------------
@@ -99,6 +101,14 @@ class ParticipantProtocol:
         """The core refused `state` (say, a local relation the manager did not know)."""
         self.failed_epoch = max(self.failed_epoch, state.epoch)
         self.error = f"epoch {state.epoch}: {error}"
+        return [self._send(now)]
+
+    def host(
+        self, hosted: tuple[str, ...], layers: tuple[LayerDeclaration, ...], now: float
+    ) -> list[ParticipantAction]:
+        """Speak for these other nodes of the process, implementing these layers in all."""
+        self.hosted = hosted
+        self.layers = layers
         return [self._send(now)]
 
     def tick(self, now: float) -> list[ParticipantAction]:

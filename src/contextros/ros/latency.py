@@ -55,13 +55,20 @@ def context_node_swarm(
 ) -> list[ContextNode]:
     """`count` context nodes (ctx_<first>...) implementing `layers`, for one executor.
 
-    Without parameter services: rclpy's executor walks every entity of every node on each
-    wake-up, and six services per node would dominate the measurement.
+    Each node has a participant of its own, so that the protocol is measured per
+    participant (context nodes of one process share one by default). Without parameter
+    services: rclpy's executor walks every entity of every node on each wake-up, and six
+    services per node would dominate the measurement.
     """
     for name in layers:
         Layer(name, group="bench")
     return [
-        ContextNode(f"ctx_{index}", layers=list(layers), start_parameter_services=False)
+        ContextNode(
+            f"ctx_{index}",
+            layers=list(layers),
+            share_participant=False,
+            start_parameter_services=False,
+        )
         for index in range(first, first + count)
     ]
 

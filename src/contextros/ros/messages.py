@@ -83,6 +83,7 @@ def report_to_msg(report: ParticipantReport, wall_time: float) -> Any:
         error=report.error,
         leaving=report.leaving,
         stamp=seconds_to_stamp(wall_time),
+        hosted_nodes=list(report.hosted),
     )
 
 
@@ -99,6 +100,7 @@ def report_from_msg(msg: Any) -> ParticipantReport:
         failed_epoch=msg.failed_epoch,
         error=msg.error,
         leaving=msg.leaving,
+        hosted=tuple(msg.hosted_nodes),
     )
 
 
@@ -170,6 +172,7 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
             in_critical_section=p.in_critical_section,
             silent_for=p.silent_for,
             lagging=p.lagging,
+            hosted_nodes=list(p.hosted),
         )
         for p in view.participants
     ]

@@ -55,6 +55,15 @@ def declaration_of(layer: Layer) -> LayerDeclaration:
     )
 
 
+def declarations_of(layers: Iterable[Layer | str] | None) -> tuple[LayerDeclaration, ...]:
+    """The declarations of `layers` (by default, every layer defined in the process)."""
+    chosen = defined_layers() if layers is None else layers
+    return tuple(
+        declaration_of(layer if isinstance(layer, Layer) else layer_named(layer))
+        for layer in chosen
+    )
+
+
 def _layer_for(name: str) -> Layer:
     # A layer this node has no partials for is still part of the configuration (it keeps
     # the composition order identical everywhere); a bare layer is transparent.
@@ -85,11 +94,9 @@ class ContextParticipant:
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
     ) -> None:
         self.node = node
-        names = defined_layers() if layers is None else layers
-        declarations = tuple(
-            declaration_of(layer if isinstance(layer, Layer) else layer_named(layer))
-            for layer in names
-        )
+        declarations = declarations_of(layers)
+        self._own_layers = declarations
+        self._hosted: dict[str, tuple[Node, tuple[LayerDeclaration, ...]]] = {}
         self.protocol = ParticipantProtocol(
             node=node.get_fully_qualified_name(),
             incarnation=f"{os.getpid()}-{uuid.uuid4().hex[:8]}",
@@ -117,6 +124,36 @@ class ContextParticipant:
     def add_listener(self, listener: StateListener) -> None:
         """Call `listener(state)` in the executor after each state this node applied."""
         self._listeners.append(listener)
+
+    def host(self, node: Node, layers: Iterable[Layer | str] | None = None) -> None:
+        """Speak for another node of this process too (its layers join the announced ones).
+
+        The decisive configuration is per process, so the states this participant applies
+        are that node's too; the manager lists it and counts this participant's
+        acknowledgement for it.
+        """
+        self._hosted[node.get_fully_qualified_name()] = (node, declarations_of(layers))
+        self._announce_hosting()
+
+    def release(self, node: Node) -> None:
+        """Stop speaking for `node` (it is being destroyed)."""
+        if self._hosted.pop(node.get_fully_qualified_name(), None) is not None:
+            self._announce_hosting()
+
+    @property
+    def hosted_nodes(self) -> tuple[str, ...]:
+        return tuple(sorted(self._hosted))
+
+    def hosted(self) -> list[Node]:
+        """The other nodes this participant speaks for, in the order they joined."""
+        return [node for node, _ in self._hosted.values()]
+
+    def _announce_hosting(self) -> None:
+        union: dict[str, LayerDeclaration] = {}
+        hosted = (d for _, declarations in self._hosted.values() for d in declarations)
+        for declaration in (*self._own_layers, *hosted):
+            union.setdefault(declaration.name, declaration)
+        self._run(self.protocol.host(self.hosted_nodes, tuple(union.values()), time.monotonic()))
 
     def leave(self) -> None:
         """Tell the manager this node is going away (it is dropped at once, not after a timeout)."""
@@ -195,8 +232,19 @@ class ContextParticipant:
             self._run(self.protocol.failed(state, why, now))
 
 
+# The participant each process's context nodes share, by rclpy context.
+_shared_participants: dict[Any, ContextParticipant] = {}
+
+
 class ContextNode(Node):
-    """An rclpy Node that follows the Layer manager (see `ContextParticipant`)."""
+    """An rclpy Node that follows the Layer manager (see `ContextParticipant`).
+
+    The layer configuration is per process, so the context nodes of one process share one
+    participant (`share_participant=True`, the default): the first one carries it, the
+    others are announced as hosted by it, and the manager waits for one acknowledgement per
+    process. If the carrying node is destroyed first, the next one takes over.
+    `share_participant=False` gives the node a participant of its own.
+    """
 
     def __init__(
         self,
@@ -204,13 +252,50 @@ class ContextNode(Node):
         *,
         layers: Iterable[Layer | str] | None = None,
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+        share_participant: bool = True,
         **node_options: Any,
     ) -> None:
         super().__init__(node_name, **node_options)
+        self._context_layers = None if layers is None else tuple(layers)
+        self._heartbeat_period = heartbeat_period
+        shared = _shared_participants.get(self.context) if share_participant else None
+        if shared is not None:
+            shared.host(self, self._context_layers)
+            self.context_participant = shared
+            return
         self.context_participant = ContextParticipant(
-            self, layers, heartbeat_period=heartbeat_period
+            self, self._context_layers, heartbeat_period=heartbeat_period
         )
+        if share_participant:
+            _shared_participants[self.context] = self.context_participant
 
     def destroy_node(self) -> None:
-        self.context_participant.leave()
+        participant = self.context_participant
+        if participant.node is not self:
+            participant.release(self)
+        else:
+            hosted = [
+                node
+                for node in participant.hosted()
+                if isinstance(node, ContextNode) and node.context_participant is participant
+            ]
+            participant.close()
+            if _shared_participants.get(self.context) is participant:
+                del _shared_participants[self.context]
+            if hosted:
+                _hand_over(participant, hosted)
         super().destroy_node()
+
+
+def _hand_over(previous: ContextParticipant, hosted: list[ContextNode]) -> None:
+    """The next context node of the process carries the shared participant from now on."""
+    successor, *others = hosted
+    participant = ContextParticipant(
+        successor, successor._context_layers, heartbeat_period=successor._heartbeat_period
+    )
+    participant._listeners = previous._listeners
+    for node in others:
+        participant.host(node, node._context_layers)
+    for node in hosted:
+        node.context_participant = participant
+    _shared_participants[successor.context] = participant
