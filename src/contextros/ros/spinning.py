@@ -55,7 +55,9 @@ def spin_nodes(
         if rclpy.ok():
             raise
     finally:
-        for node in nodes:
+        # Last created first: nodes hosted by a shared participant leave before its carrier,
+        # so the participant is never handed over on the way out.
+        for node in reversed(nodes):
             with contextlib.suppress(Exception):
                 node.destroy_node()
         executor.shutdown(timeout_sec=0.5)
