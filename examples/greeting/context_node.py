@@ -23,13 +23,11 @@ class GreetingNode(ContextNode):
     def __init__(self) -> None:
         super().__init__("greeting", layers=greeting.__layers__)
         self.publisher = self.create_publisher(String, "greeting", 10)
-        self.timer = self.create_timer(1.0, self.on_timer)
-
-    def on_timer(self) -> None:
-        if active_layers():  # no city yet: nothing to say
-            self.greet()
+        self.timer = self.create_timer(1.0, self.greet)
 
     def greet(self, now: datetime | None = None) -> None:
+        if not active_layers():  # no city yet: nothing to say
+            return
         local = (now or datetime.now(timezone.utc)).astimezone(greeting.zone())
         part_of_day = 0 if 5 <= local.hour < 12 else 1 if 12 <= local.hour < 18 else 2
         line = f"{local:%H:%M} {local.tzname()} {greeting.words(part_of_day)}"
