@@ -8,12 +8,18 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from contextros.errors import LayerError
+
+if TYPE_CHECKING:
+    from contextros.ros import LayerClient
 
 # Exit statuses: 0 success, 1 the manager refused or nodes did not acknowledge,
 # 3 no manager reachable (argparse itself uses 2 for usage errors).
@@ -147,19 +153,28 @@ def run_manager(args: argparse.Namespace) -> int:
 # -- clients --------------------------------------------------------------------------------
 
 
-def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
+@contextmanager
+def _client(purpose: str) -> Iterator[LayerClient]:
+    """A LayerClient on a short-lived node of this command's own, torn down on the way out."""
     import rclpy
     from rclpy.node import Node
 
     from contextros.ros import LayerClient
 
+    rclpy.init()
+    node = Node(f"contextros_{purpose}_{os.getpid()}")
+    try:
+        yield LayerClient(node)
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     if not on and not off:
         print("contextros: name layers to activate (--on) or deactivate (--off)", file=sys.stderr)
         return 2
-    rclpy.init()
-    node = Node(f"contextros_cli_{_suffix()}")
-    try:
-        client = LayerClient(node)
+    with _client("cli") as client:
         try:
             client.wait_for_manager(args.wait_manager)
         except LayerError as error:
@@ -172,9 +187,6 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
         except LayerError as error:
             print(f"contextros: {error}", file=sys.stderr)
             return FAILED
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
     if args.json:
         print(json.dumps(result.__dict__ | {"active": list(result.active)}, default=list))
     else:
@@ -191,31 +203,14 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     return 0
 
 
-def _suffix() -> str:
-    import os
-
-    return f"{os.getpid()}"
-
-
 def run_status(args: argparse.Namespace) -> int:
-    import rclpy
-    from rclpy.node import Node
-
-    from contextros.ros import LayerClient
-
-    rclpy.init()
-    node = Node(f"contextros_status_{_suffix()}")
-    try:
-        client = LayerClient(node)
+    with _client("status") as client:
         try:
             client.wait_for_manager(args.wait_manager)
             registry = client.query()
         except LayerError as error:
             print(f"contextros: {error}", file=sys.stderr)
             return NO_MANAGER
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
     if args.json:
         print(json.dumps(_registry_as_dict(registry), indent=2))
     else:
@@ -314,7 +309,7 @@ def run_watch(args: argparse.Namespace) -> int:
     from contextros.ros.messages import stamp_to_seconds
 
     rclpy.init()
-    node = Node(f"contextros_watch_{_suffix()}")
+    node = Node(f"contextros_watch_{os.getpid()}")
     switches = 0
     last_switch = 0.0
     # Per epoch: when it was published, the live nodes that must apply it, and who has not.
