@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros demo test test-core bench lint clean
+.PHONY: all venv ros cpp demo demo-rescue test test-core bench lint clean
 
 all: test
 
@@ -17,18 +17,41 @@ $(VENV)/.stamp-base: pyproject.toml
 	$(PY) -m pip install --quiet -e '.[dev,ros,ros-build]'
 	touch $@
 
-# The rosidl interface package, built against the wheels into the venv prefix.
-$(VENV)/.stamp-interfaces: $(VENV)/.stamp-base $(shell find interfaces/contextros_interfaces interfaces/cmake -type f) interfaces/build.sh
-	bash interfaces/build.sh $(abspath $(VENV))
+# cmake and ninja: the machine's, else the package index's, into the venv (on PATH below).
+BUILD_PATH := PATH="$(abspath $(VENV))/bin:$$PATH"
+$(VENV)/.stamp-buildtools: $(VENV)/.stamp-base
+	command -v cmake >/dev/null && command -v ninja >/dev/null \
+	  || $(PY) -m pip install --quiet 'cmake>=3.22,<5' 'ninja>=1.10'
 	touch $@
+
+# The rosidl interface package, built against the wheels into the venv prefix.
+$(VENV)/.stamp-interfaces: $(VENV)/.stamp-buildtools $(shell find interfaces/contextros_interfaces interfaces/cmake -type f) interfaces/build.sh
+	$(BUILD_PATH) bash interfaces/build.sh $(abspath $(VENV))
+	touch $@
+
+# The C++ part (cpp/: runtime, participant, example node, tests) against the wheels.
+# Configured once; from then on ninja rebuilds what changed (and re-configures by itself
+# when a CMakeLists.txt changes).
+CPP_BUILD := build/cpp
+$(CPP_BUILD)/build.ninja: $(VENV)/.stamp-interfaces
+	$(BUILD_PATH) cmake -S cpp -B $(CPP_BUILD) -G Ninja -DCONTEXTROS_ROS_WHEELS=$(abspath $(VENV))
+	touch $@
+
+cpp: $(CPP_BUILD)/build.ninja
+	$(BUILD_PATH) cmake --build $(CPP_BUILD) --parallel 2
 
 venv: $(VENV)/.stamp-base
 ros: $(VENV)/.stamp-interfaces
 
-demo: ros
+demo: ros cpp
 	$(PY) -m examples.demo
 
-test: ros
+# The rescue robot: rules, a parameter-bound layer, a lifecycle node, a namespace.
+demo-rescue: ros
+	$(PY) -m examples.rescue.demo
+
+# tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
+test: ros cpp
 	$(PY) -m pytest -n 2 -q
 
 # The ROS-free part only (fast inner loop).
@@ -39,7 +62,7 @@ $(VENV)/.stamp-bench: $(VENV)/.stamp-base
 	$(PY) -m pip install --quiet -e '.[bench]'
 	touch $@
 
-bench: ros $(VENV)/.stamp-bench
+bench: ros cpp $(VENV)/.stamp-bench
 	$(PY) -m benchmarks
 
 lint: venv

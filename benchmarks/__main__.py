@@ -19,8 +19,16 @@ DOCS = Path(__file__).resolve().parent.parent / "docs"
 SECTIONS = [
     ("dispatch", "Dispatch cost of the COP core (issue 2)"),
     ("compiled_dispatch", "Compiled layer files: static dispatch (issue 3)"),
+    (
+        "cpp_dispatch",
+        "C++ dispatch: generated layered calls vs a plain call vs Listing 2 (issue 9)",
+    ),
     ("greeting", "The paper's Table 3: greeting application, plain ROS 2 vs ContextROS"),
     ("activation", "The paper's Fig. 9 extended: activation time vs number of nodes"),
+    ("cpp_activation", "C++ context nodes: activation round trip, memory, start-up (issue 9)"),
+    ("lossy_link", "Synchronous activation over a lossy link between two hosts (issue 10)"),
+    ("rules", "Context rules: manager-side cost per message (issue 11)"),
+    ("cli_command", "A CLI client command, from process start to exit (issue 12)"),
 ]
 
 
@@ -80,9 +88,36 @@ def main() -> int:
             parts += [f"![{title}]({image.name})", ""]
     parts.append(f"_Total benchmark time: {time.time() - started:.0f} s._")
     DOCS.mkdir(exist_ok=True)
-    (DOCS / "benchmarks.md").write_text("\n".join(parts) + "\n")
+    target = DOCS / "benchmarks.md"
+    if only and target.exists():
+        # Some sections only: put them in place in the existing page, keep the others.
+        text = _splice(target.read_text(), "\n".join(parts) + "\n", only)
+        target.write_text(text)
+        print(f"updated {sorted(only)} in {target}")
+        return 0
+    target.write_text("\n".join(parts) + "\n")
     print(f"wrote {DOCS / 'benchmarks.md'}")
     return 0
+
+
+def _sections(text: str) -> tuple[str, dict[str, str]]:
+    """The page's head and its `## ` sections by title."""
+    head, *chunks = text.split("\n## ")
+    return head, {chunk.split("\n", 1)[0]: "## " + chunk for chunk in chunks}
+
+
+def _splice(page: str, fresh: str, only: set[str]) -> str:
+    """`page` with the sections of `fresh` replaced in place (new ones appended), the others
+    kept as they were."""
+    head, old = _sections(page)
+    _, new = _sections(fresh.split("\n_Total benchmark time")[0])
+    titles = {title for name, title in SECTIONS if name in only}
+    merged = [
+        new[title] if title in titles and title in new else section
+        for title, section in old.items()
+    ]
+    merged += [new[title] for title in new if title in titles and title not in old]
+    return head.rstrip() + "\n\n" + "\n".join(s.rstrip() + "\n" for s in merged).rstrip() + "\n"
 
 
 if __name__ == "__main__":

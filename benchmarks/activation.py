@@ -11,6 +11,8 @@ plain-ROS baselines. Rounds alternate the series below; each switches Indoor <->
   publication (its stamp) until the last node applied it (the node's own clock at apply).
 - synchronous: measured by the manager, from receiving the command until it holds every
   node's acknowledgement (`elapsed` of the reply); the caller's round trip is shown too.
+- atomic: the same with `atomic=True` (every participant votes on the proposed state, then
+  the manager commits it and waits for every acknowledgement), measured by the manager.
 - parameter, one by one / all in parallel: what a ROS developer would otherwise do: the
   caller sets the parameter on every node through its `set_parameters` service, waiting
   for each reply before the next call, or sending all calls at once; until every reply.
@@ -51,15 +53,23 @@ NODES_PER_PROCESS = 8
 ROUNDS = 40  # per series and N
 BENCH_DOMAIN_ID = 78
 FLOOR = "floor: topic round trip"
-MODES = ("asynchronous", "synchronous", "parameter, one by one", "parameter, parallel", FLOOR)
+MODES = (
+    "asynchronous",
+    "synchronous",
+    "atomic",
+    "parameter, one by one",
+    "parameter, parallel",
+    FLOOR,
+)
 PER_NODE = ", one participant per node"
 SERIES = (
     "asynchronous",
     "synchronous",
     "synchronous, caller",
+    "atomic",
     "asynchronous" + PER_NODE,
     "synchronous" + PER_NODE,
-    *MODES[2:],
+    *MODES[3:],
 )
 PINGS_PER_ROUND = 5
 PAPER_FIG9 = (
@@ -68,6 +78,11 @@ PAPER_FIG9 = (
 )
 # Why a target can be missed: the reasons found when measuring (see the per-node costs above).
 WHY_MISSED = {
+    "atomic": (
+        "An atomic activation is two rounds (proposal out, every vote back; then the state out,"
+        " every acknowledgement back), each as costly as a synchronous activation's one, plus"
+        " the manager's 50 ms tick that repeats the proposal only if a vote is late."
+    ),
     "parallel": (
         "With one participant per node, a synchronous activation costs per node one state"
         " callback and one status message (handled by the node's and the manager's rclpy"
@@ -225,10 +240,12 @@ class Caller:
         """The context the manager has active (Indoor when none yet: the next switch is Outdoor)."""
         return "Outdoor" if list(self.client.query().active_layers) == ["Outdoor"] else "Indoor"
 
-    def activate(self, context: str, synchronous: bool) -> tuple[Any, float]:
+    def activate(self, context: str, synchronous: bool, atomic: bool = False) -> tuple[Any, float]:
         other = CONTEXTS[1 - CONTEXTS.index(context)]
         started = time.perf_counter()
-        result = self.client.request([context], [other], synchronous=synchronous, timeout=5.0)
+        result = self.client.request(
+            [context], [other], synchronous=synchronous, timeout=5.0, atomic=atomic
+        )
         round_trip = time.perf_counter() - started
         if not result.success:
             raise RuntimeError(f"activation of {context} failed: {result.message}")
@@ -342,6 +359,10 @@ def measure(
                     result, round_trip = caller.activate(target, synchronous=True)
                     times["synchronous"].append(result.elapsed)
                     times["synchronous, caller"].append(round_trip)
+                    active = target
+                elif mode == "atomic":
+                    result, _ = caller.activate(target, synchronous=False, atomic=True)
+                    times["atomic"].append(result.elapsed)
                     active = target
                 elif mode == FLOOR:
                     for _ in range(PINGS_PER_ROUND):
@@ -467,7 +488,9 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     per_node_async_64 = _median(rows, "asynchronous" + PER_NODE, 64)
     per_node_async_1 = _median(rows, "asynchronous" + PER_NODE, 1)
     parallel_64 = _median(rows, "parameter, parallel", 64)
+    atomic_64 = _median(rows, "atomic", 64)
     checks = [
+        ("atomic at N=64 / synchronous at N=64", atomic_64 / sync_64, 2.0, "atomic"),
         (
             "synchronous at N=64 / parameter, parallel at N=64",
             sync_64 / parallel_64,

@@ -2,7 +2,10 @@
 
 Same workload everywhere: a method computing ``x + 1`` (partials add their own ``+ 1``).
 Cases: no active layer; one active partial that does not proceed; one that proceeds to
-the base; three stacked partials that proceed.
+the base; three stacked partials that proceed. Then the price of the newer features for
+a class that does not use them: the same calls while another class has a layer active
+for one of its objects (per-object activation puts only that class's methods on a
+per-receiver path), and, for reference, that per-receiver path itself.
 """
 
 from __future__ import annotations
@@ -12,7 +15,15 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.timing import ns_per_call
-from contextros import Layer, activated, layered, proceed, set_active
+from contextros import (
+    Layer,
+    activate_for,
+    activated,
+    layered,
+    proceed,
+    reset_for,
+    set_active,
+)
 
 TARGETS = {
     "no active layer": 1.2,
@@ -21,6 +32,12 @@ TARGETS = {
     "three partials, proceed": None,
 }
 SCOPED = "one partial, proceeds, scoped (with activated)"
+# A class that does not use per-object activation, while another class does.
+UNAFFECTED = {
+    "no active layer, another class has per-object layers": 1.2,
+    "one partial, proceeds, another class has per-object layers": 2.5,
+}
+PER_OBJECT = "one partial, proceeds, per-object (activate_for)"
 
 L1, L2, L3 = Layer("BenchL1"), Layer("BenchL2"), Layer("BenchL3")
 
@@ -44,6 +61,18 @@ class Layered:
         return proceed(self, x) + 1
 
     @step.partial(L3)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+
+class Elsewhere:
+    """Another class, whose objects get layers of their own."""
+
+    @layered
+    def step(self, x: int) -> int:
+        return x + 1
+
+    @step.partial(L1)
     def step(self, x: int) -> int:
         return proceed(self, x) + 1
 
@@ -76,6 +105,18 @@ def _contextros_cases() -> dict[str, float]:
     with activated(L1):  # the context-variable path, as in a `with` block
         timed = ns_per_call({SCOPED: ("o.step(1)", {"o": layered_obj})})
     results[SCOPED] = timed[SCOPED]
+    elsewhere = Elsewhere()
+    activate_for(elsewhere, L1)
+    for case, layers in zip(UNAFFECTED, [[], [L1]], strict=True):
+        set_active(layers)
+        timed = ns_per_call(
+            {"plain": ("o.step(1)", {"o": plain}), case: ("o.step(1)", {"o": layered_obj})}
+        )
+        results[case] = timed[case]
+        results["plain"] = min(results["plain"], timed["plain"])
+    set_active([])
+    results[PER_OBJECT] = ns_per_call({PER_OBJECT: ("o.step(1)", {"o": elsewhere})})[PER_OBJECT]
+    reset_for(elsewhere)
     return results
 
 
@@ -135,14 +176,15 @@ def run() -> list[dict[str, Any]]:
     theirs = _contextpy3_cases()
     plain = ours["plain"]
     rows: list[dict[str, Any]] = [{"case": "plain method", "ns": plain, "ratio": 1.0}]
-    for case, target in [*TARGETS.items(), (SCOPED, None)]:
+    cases = [*TARGETS.items(), (SCOPED, None), *UNAFFECTED.items(), (PER_OBJECT, None)]
+    for case, target in cases:
         row: dict[str, Any] = {
             "case": case,
             "ns": ours[case],
             "ratio": ours[case] / plain,
             "target": target,
         }
-        if theirs is not None:
+        if theirs is not None and case in theirs:
             row["contextpy3_ns"] = theirs[case]
             row["speedup_vs_contextpy3"] = theirs[case] / ours[case]
         rows.append(row)

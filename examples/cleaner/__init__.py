@@ -2,6 +2,7 @@
 
 `location.layers` holds everything that differs between indoors and outdoors; the
 localization and cleaning nodes follow the manager's Indoor/Outdoor layers; `world.py`
-simulates the drive; `context_detector.py` decides the context from the GPS and asks the
-manager to switch. `python -m examples.demo` runs it all.
+simulates the drive; the rule `GpsFix` of `location.layers`, run by the manager
+(`contextros manager --rules location.layers`), decides the context from the GPS.
+`python -m examples.demo` runs it all.
 """

@@ -14,6 +14,7 @@ from std_msgs.msg import String
 
 from contextros import active_layers, load
 from contextros.ros import ContextNode, spin_nodes
+from examples.cleaner.narration import report_applied
 
 location = load(Path(__file__).with_name("location.layers"))
 
@@ -21,6 +22,7 @@ location = load(Path(__file__).with_name("location.layers"))
 class CleaningNode(ContextNode):
     def __init__(self) -> None:
         super().__init__("cleaning", layers=location.__layers__)
+        self.context_participant.add_listener(report_applied)
         self.method = "nothing"
         self.method_pub = self.create_publisher(String, "cleaning/method", 10)
         self.timer = self.create_timer(0.1, self.clean)

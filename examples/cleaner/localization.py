@@ -19,6 +19,7 @@ from sensor_msgs.msg import Imu, NavSatFix, NavSatStatus
 from contextros import active_layers, load
 from contextros.ros import ContextNode, spin_nodes
 from examples.cleaner.gps_frame import to_local
+from examples.cleaner.narration import report_applied
 
 location = load(Path(__file__).with_name("location.layers"))
 
@@ -26,6 +27,7 @@ location = load(Path(__file__).with_name("location.layers"))
 class LocalizationNode(ContextNode):
     def __init__(self) -> None:
         super().__init__("localization", layers=location.__layers__)
+        self.context_participant.add_listener(report_applied)
         self.pose = location.Pose(0.0, 0.0, 0.0, "none")
         self.speed = 0.0
         self.gps: tuple[float, float] | None = None

@@ -4,7 +4,7 @@ Publishes what the robot's sensors would see, at 20 Hz: the gyro (`imu`, sensor_
 the wheel speed (`wheel_speed`, geometry_msgs/TwistStamped) and the GPS receiver
 (`gps/fix`, sensor_msgs/NavSatFix), which has no fix inside the building and a fix once the
 robot is clear of its wall. Prints each stage of the drive; after the route it stands still.
-The drive starts once the robot's localization and context detector listen (discovery
+The drive starts once the robot's localization and the manager's context rule listen (discovery
 takes a moment), so they see all of it.
 """
 
@@ -61,7 +61,7 @@ class WorldNode(Node):
         self.listeners_since: float | None = None
 
     def wait_for_listeners(self) -> None:
-        # Both the localization and the context detector read the GPS; only the former the gyro.
+        # Both the localization and the manager's rule read the GPS; only the former the gyro.
         heard = self.gps_pub.get_subscription_count() >= 2 and self.imu_pub.get_subscription_count()
         now = time.monotonic()
         if not heard:

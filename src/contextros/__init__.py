@@ -2,28 +2,17 @@
 
 The names here are the COP core and `load` for layer files (no ROS needed). The layer
 language lives in `contextros.language`, the distributed Layer manager in `contextros.ros`.
+
+Names are imported lazily (PEP 562): `import contextros` loads only the error classes, and
+the core or the language is imported on the first use of one of their names, so that the
+command-line tools start fast.
 """
 
-from contextros.core import (
-    Layer,
-    SwitchEvent,
-    SwitchResult,
-    activate,
-    activated,
-    active_layers,
-    critical,
-    current_epoch,
-    deactivate,
-    deactivated,
-    defined_layers,
-    in_critical_section,
-    layer_named,
-    layered,
-    proceed,
-    set_active,
-    subscribe,
-    switch,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 from contextros.errors import (
     DispatchError,
     HookError,
@@ -34,9 +23,79 @@ from contextros.errors import (
     RelationError,
     UnknownLayerError,
 )
-from contextros.language import load
+
+if TYPE_CHECKING:
+    from contextros.core import (
+        Layer,
+        SwitchEvent,
+        SwitchResult,
+        activate,
+        activate_for,
+        activated,
+        active_layers,
+        critical,
+        current_epoch,
+        deactivate,
+        deactivate_for,
+        deactivated,
+        defined_layers,
+        in_critical_section,
+        layer_named,
+        layered,
+        layers_for,
+        proceed,
+        remove_layer,
+        reset_for,
+        set_active,
+        subscribe,
+        switch,
+    )
+    from contextros.language import load
 
 __version__ = "0.1.0"
+
+_LAZY = {
+    name: "contextros.core"
+    for name in (
+        "Layer",
+        "SwitchEvent",
+        "SwitchResult",
+        "activate",
+        "activate_for",
+        "activated",
+        "active_layers",
+        "critical",
+        "current_epoch",
+        "deactivate",
+        "deactivate_for",
+        "deactivated",
+        "defined_layers",
+        "in_critical_section",
+        "layer_named",
+        "layered",
+        "layers_for",
+        "proceed",
+        "remove_layer",
+        "reset_for",
+        "set_active",
+        "subscribe",
+        "switch",
+    )
+} | {"load": "contextros.language"}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'contextros' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "DispatchError",
@@ -52,18 +111,23 @@ __all__ = [
     "UnknownLayerError",
     "__version__",
     "activate",
+    "activate_for",
     "activated",
     "active_layers",
     "critical",
     "current_epoch",
     "deactivate",
+    "deactivate_for",
     "deactivated",
     "defined_layers",
     "in_critical_section",
     "layer_named",
     "layered",
+    "layers_for",
     "load",
     "proceed",
+    "remove_layer",
+    "reset_for",
     "set_active",
     "subscribe",
     "switch",

@@ -24,6 +24,7 @@ EXPECTED = {
     "UnknownLayerError",
     "__version__",
     "activate",
+    "activate_for",
     "activated",
     "active_layers",
     "critical",
@@ -31,10 +32,14 @@ EXPECTED = {
     "defined_layers",
     "in_critical_section",
     "deactivate",
+    "deactivate_for",
     "deactivated",
     "layer_named",
     "layered",
+    "layers_for",
     "proceed",
+    "remove_layer",
+    "reset_for",
     "set_active",
     "subscribe",
     "switch",
@@ -81,3 +86,25 @@ def test_core_imports_and_runs_without_ros() -> None:
     )
     assert result.returncode == 0, result.stderr
     assert "ROS-MODULES []" in result.stdout
+
+
+def test_names_are_imported_lazily_and_all_resolve() -> None:
+    """`import contextros` loads no core or language module until a name is used (a fast
+    CLI start), and every exported name of each lazy package resolves."""
+    script = textwrap.dedent(
+        """
+        import sys
+        import contextros
+        print('EAGER', sorted(m for m in sys.modules if m.startswith('contextros.')
+                              and m not in ('contextros.errors',)))
+        import contextros.language as language
+        for name in contextros.__all__ + language.__all__:
+            getattr(contextros if name in contextros.__all__ else language, name)
+        print('RESOLVED')
+        """
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=60
+    )
+    assert result.returncode == 0, result.stderr
+    assert "EAGER []" in result.stdout and "RESOLVED" in result.stdout

@@ -45,6 +45,7 @@ def lines_of(output: str, process: str) -> list[str]:
 
 @pytest.mark.ros
 def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_id: int) -> None:
+    """One manager switches the C++ localization node and the Python cleaning node."""
     demo = subprocess.run(
         [sys.executable, "-m", "examples.demo"],
         cwd=REPOSITORY,
@@ -55,8 +56,13 @@ def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_i
     )
     assert demo.returncode == 0, demo.stdout + demo.stderr
     out = demo.stdout
-    switches = [t.split(":")[0] for t in lines_of(out, "context_detector") if "switched" in t]
-    assert switches == ["switched to Indoor", "switched to Outdoor", "switched to Indoor"]
+    # The manager's rule (location.layers: `rule GpsFix: ...`) decides, from the GPS.
+    switches = [t.split(":")[0] for t in lines_of(out, "manager") if "switched to" in t]
+    assert switches == [
+        "rule GpsFix switched to Indoor",
+        "rule GpsFix switched to Outdoor",
+        "rule GpsFix switched to Indoor",
+    ]
     positions = [t.split()[3] for t in lines_of(out, "localization") if t.startswith("position")]
     assert positions == ["gyro", "GPS", "gyro"]
     methods = [t.split()[2] for t in lines_of(out, "cleaning") if t.startswith("cleaning by")]
@@ -67,4 +73,15 @@ def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_i
     first_gps = next(i for i, t in enumerate(narration) if "position from the GPS" in t)
     first_vacuum = next(i for i, t in enumerate(narration) if "cleaning by vacuuming" in t)
     assert left < first_gps and left < first_vacuum
+    # The localization node is the C++ one, built from its C++ layer file.
+    assert lines_of(out, "localization")[0].startswith("localization node in C++")
+    # Each node says how long after the manager's publication it applied each switch.
+    for node in ("localization", "cleaning"):
+        applied = [t.split("[")[1].split("]")[0] for t in lines_of(out, node) if "applied" in t]
+        contexts = [c for c in applied if c in ("Indoor", "Outdoor")]
+        assert contexts == ["Indoor", "Outdoor", "Indoor"], f"{node}: {applied}"
+    summary = out[out.index("summary") :]
+    assert "localization (C++)     gyro -> GPS -> gyro" in summary
+    assert "cleaning (Python)      wiping -> vacuuming -> wiping" in summary
+    assert summary.count("applied after publication: localization (C++) ") == 3, summary
     assert "demo complete" in out

@@ -46,10 +46,45 @@ def test_compile_writes_the_module(tmp_path: Path, capsys: pytest.CaptureFixture
     shutil.copy(FIXTURES / "cleaner.layers", source)
     output = tmp_path / "out.py"
     assert main(["compile", str(source), "-o", str(output)]) == 0
-    # The golden file was compiled under the bare file name.
-    expected = (GOLDEN / "cleaner.py.golden").read_text().replace('"cleaner.layers"', f'"{source}"')
-    assert output.read_text() == expected
+    # Side by side: the module names its source by the bare file name, as the golden file.
+    assert output.read_text() == (GOLDEN / "cleaner.py.golden").read_text()
     assert capsys.readouterr().err == ""
+
+
+def test_compiled_output_does_not_depend_on_the_working_directory(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Reproducible builds (issue 12): the path as typed never reaches the module."""
+    (tmp_path / "src").mkdir()
+    (tmp_path / "build").mkdir()
+    source = tmp_path / "src" / "cleaner.layers"
+    shutil.copy(FIXTURES / "cleaner.layers", source)
+    outputs = []
+    for cwd, typed_source, typed_output in [
+        (tmp_path, "src/cleaner.layers", "build/a.py"),
+        (tmp_path / "src", "cleaner.layers", "../build/b.py"),
+        (tmp_path / "build", str(source), str(tmp_path / "build" / "c.py")),
+    ]:
+        monkeypatch.chdir(cwd)
+        assert main(["compile", typed_source, "-o", typed_output]) == 0
+        outputs.append((cwd / typed_output).read_text())
+    assert outputs[0] == outputs[1] == outputs[2]
+    assert '"../src/cleaner.layers"' in outputs[0]
+    assert str(tmp_path) not in outputs[0]
+
+
+def test_check_refuses_a_file_that_is_not_a_layer_file(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    module = tmp_path / "robot.py"
+    module.write_text("print('hello')\n")
+    assert main(["check", str(module)]) == 1
+    out = capsys.readouterr().out
+    assert f"{module}: error: a Python module, not a layer file" in out
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["check", str(empty)]) == 1
+    assert "a directory with no *.layers file in it" in capsys.readouterr().out
 
 
 def test_compile_defaults_to_a_py_file_next_to_the_source(tmp_path: Path) -> None:

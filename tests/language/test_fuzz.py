@@ -3,8 +3,10 @@
 Two sources of input: layer files generated from the grammar's pieces (with wrong
 indentation, broken bodies, unknown and duplicate names mixed in) and mutations of the
 fixtures (characters inserted, deleted, lines duplicated or swapped). For each input,
-`check_source` must return diagnostics without raising, `compile_source` may only raise
-`LayerLanguageError`, and a file that compiles must yield code Python accepts.
+`check_source` must return diagnostics without raising, each located at a real line and
+column and rendered with that line and a caret under the column; `compile_source` may only
+raise `LayerSyntaxError`, located likewise; and a file that compiles must yield code Python
+accepts.
 """
 
 from __future__ import annotations
@@ -14,7 +16,14 @@ import warnings
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from contextros.language import LayerLanguageError, check_source, compile_source
+from contextros.language import (
+    Diagnostic,
+    LayerLanguageError,
+    LayerSyntaxError,
+    check_source,
+    compile_source,
+)
+from contextros.language.diagnostics import printable, source_lines
 from tests.language.conftest import FIXTURES
 
 FUZZ = settings(
@@ -168,16 +177,38 @@ def mutated(draw: st.DrawFn) -> str:
     return text
 
 
+def assert_located(diagnostic: Diagnostic, text: str) -> None:
+    """file:line:col of a real line, that line quoted, and a caret under the column."""
+    lines = source_lines(text)
+    assert 1 <= diagnostic.line <= max(1, len(lines)), diagnostic
+    assert diagnostic.col >= 1
+    rendered = diagnostic.render().split("\n")
+    assert rendered[0].startswith(f"fuzz.layers:{diagnostic.line}:{diagnostic.col}: ")
+    if not text:
+        return  # nothing to quote (an empty file has no line)
+    assert len(rendered) == 3, rendered
+    quoted = printable(lines[diagnostic.line - 1])
+    assert rendered[1] == f"    {quoted}"
+    caret = rendered[2]
+    assert caret.endswith("^") and set(caret[:-1]) <= {" "}
+    assert len(caret) - 5 == min(diagnostic.col - 1, len(quoted))
+
+
 def exercise(text: str) -> None:
     diagnostics = check_source(text, "fuzz.layers")
     for diagnostic in diagnostics:
-        assert diagnostic.line >= 1 and diagnostic.col >= 1
-        assert diagnostic.render().startswith(f"fuzz.layers:{diagnostic.line}:{diagnostic.col}: ")
+        assert_located(diagnostic, text)
     try:
         compiled = compile_source(text, "fuzz.layers")
     except LayerLanguageError as error:
+        assert isinstance(error, LayerSyntaxError)
         assert any(d.is_error for d in diagnostics)
         assert error.diagnostics[0].is_error
+        first = error.diagnostics[0]
+        assert (error.path, error.line, error.col) == ("fuzz.layers", first.line, first.col)
+        assert_located(first, text)
+        if text:
+            assert str(error).split("\n")[2].endswith("^")
         return
     assert not any(d.is_error for d in diagnostics)
     with warnings.catch_warnings():

@@ -22,7 +22,13 @@ from contextros.protocol import (
     Reply,
 )
 
-SETTINGS = ManagerSettings(liveness_timeout=2.0, default_timeout=5.0, recovery_window=1.0)
+SETTINGS = ManagerSettings(
+    liveness_timeout=2.0,
+    default_timeout=5.0,
+    recovery_window=1.0,
+    unknown_layer_grace=0.0,
+    memoryless_epoch_gap=1,  # the gap has its own test (test_manager_promises.py)
+)
 INDOOR = LayerDeclaration("Indoor", group="location")
 OUTDOOR = LayerDeclaration("Outdoor", group="location")
 NIGHT = LayerDeclaration("Night")
@@ -309,7 +315,7 @@ def test_restart_uses_the_state_file_when_it_is_newer() -> None:
 
 def test_participant_ahead_of_a_manager_without_memory_is_overtaken() -> None:
     manager = ManagerProtocol(0.0, SETTINGS)
-    assert [s.epoch for s in states(manager.tick(1.0))] == [1]
+    assert states(manager.tick(1.0)) == [], "nothing known yet: nothing published"
     (state,) = states(manager.receive_status(report("/late", 57, ("Night",)), 1.5))
     assert state.epoch == 58 and state.active == ("Night",)
     # Once a client decided here, the manager's own configuration is re-asserted instead.
@@ -366,7 +372,9 @@ def test_restart_of_a_participant_is_told_apart_from_two_nodes_sharing_a_name() 
 def test_a_state_of_another_manager_with_our_epoch_is_overtaken() -> None:
     # m3 started without memory and heard only stale reports: it numbered its first state
     # like the one its predecessor published; the nodes, on the predecessor's, report it.
-    manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0, manager_id="m3"))
+    manager = ManagerProtocol(
+        0.0, ManagerSettings(recovery_window=1.0, manager_id="m3", memoryless_epoch_gap=1)
+    )
     manager.receive_status(report("/a", 3, ("Night",)), 0.5)
     (mine,) = states(manager.tick(1.0))
     assert mine.epoch == 4
@@ -413,3 +421,49 @@ def test_nodes_hosted_by_a_silent_participant_are_named_with_it() -> None:
     assert not result.success
     assert result.not_acknowledged == ("/guest", "/host")
     assert "/guest (hosted by /host, still on epoch" in result.message
+
+
+def test_a_change_of_nothing_says_no_change_sync_or_not() -> None:
+    """Issue 12: not "acknowledged by 3 in 0.0 ms" for a deactivation of an inactive layer."""
+    system = System()
+    for node in ("/a", "/b", "/c"):
+        system.ack(node)
+    synchronous = replies(system.command(1, deactivate=("Night",), synchronous=True))[1]
+    assert synchronous.message.startswith("no change")
+    asynchronous = replies(system.command(2, deactivate=("Night",)))[2]
+    assert asynchronous.message == "no change"
+
+
+def test_a_refusal_names_the_layer_that_displaces_a_required_one() -> None:
+    """Activating Flight drops Wheels (same exclusive group) while LowBattery requires
+    Wheels: the refusal names all three layers and both relations."""
+    wheels = LayerDeclaration("Wheels", group="mobility")
+    flight = LayerDeclaration("Flight", group="mobility")
+    low = LayerDeclaration("LowBattery", requires=frozenset({"Wheels"}))
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a", layers=(wheels, flight, low)), 0.0)
+    manager.tick(SETTINGS.recovery_window)
+    cmd = ActivationCommand(request_id=1, activate=("Wheels", "LowBattery"))
+    assert replies(manager.receive_command(cmd, 1.1))[1].success
+    refused = replies(
+        manager.receive_command(ActivationCommand(request_id=2, activate=("Flight",)), 1.2)
+    )[2]
+    assert not refused.success
+    message = refused.message
+    assert "LowBattery requires Wheels" in message
+    assert "activating Flight would deactivate Wheels" in message
+    assert "exclusive group 'mobility'" in message and "nothing changed" in message
+
+
+def test_a_refusal_names_a_displaced_layer_only_when_it_is_the_cause() -> None:
+    wheels = LayerDeclaration("Wheels", group="mobility")
+    flight = LayerDeclaration("Flight", group="mobility", excludes=frozenset({"LowBattery"}))
+    low = LayerDeclaration("LowBattery")
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a", layers=(wheels, flight, low)), 0.0)
+    manager.tick(SETTINGS.recovery_window)
+    manager.receive_command(ActivationCommand(request_id=1, activate=("Wheels", "LowBattery")), 1.1)
+    command = ActivationCommand(request_id=2, activate=("Flight",))
+    refused = replies(manager.receive_command(command, 1.2))[2]
+    assert "Flight excludes LowBattery" in refused.message
+    assert "would deactivate" not in refused.message

@@ -62,11 +62,16 @@ def test_failure_is_reported_and_not_retried() -> None:
     assert p.receive_state(state) == []
 
 
-def test_heartbeat_period() -> None:
+def test_heartbeat_period_and_repeats_of_a_new_report() -> None:
     p = participant()
     assert len(p.announce(0.0)) == 1
+    assert p.next_repeat == 0.05
+    assert len(p.tick(0.05)) == 1, "repeated shortly after: a lossy link may have lost it"
     assert p.tick(0.1) == []
-    assert len(p.tick(0.26)) == 1
+    assert len(p.tick(0.15)) == 1
+    assert p.next_repeat is None
+    assert p.tick(0.3) == []
+    assert len(p.tick(0.41)) == 1, "then the heartbeat"
     (leaving,) = p.leave(0.3)
     assert isinstance(leaving, PublishStatus) and leaving.report.leaving
 
@@ -89,3 +94,31 @@ def test_hosting_other_nodes_reannounces_with_their_layers() -> None:
     assert isinstance(action, PublishStatus)
     assert action.report.hosted == ("/guest",)
     assert [d.name for d in action.report.layers] == ["Indoor", "Night"]
+
+
+def test_an_error_spanning_lines_is_reported_flat() -> None:
+    from contextros.protocol.validation import report_problems
+
+    p = participant()
+    (action,) = p.failed(LayerState(2, ("Night",)), "line one\nline two", now=0.0)
+    assert isinstance(action, PublishStatus)
+    assert "line one line two" in action.report.error
+    assert report_problems(action.report) == [], "the manager accepts it"
+
+
+def test_a_vote_is_yes_unless_a_critical_section_or_a_relation_says_no() -> None:
+    p = ParticipantProtocol(
+        "/p", "1", (LayerDeclaration("Gps", requires=frozenset({"Outdoor"})),), repeats=()
+    )
+    (yes,) = p.receive_proposal(LayerState(2, ("Outdoor", "Gps")), now=0.0)
+    assert isinstance(yes, PublishStatus)
+    assert (yes.report.vote_epoch, yes.report.vote_yes) == (2, True)
+    assert p.receive_proposal(LayerState(2, ("Outdoor", "Gps")), now=0.1) == [], "voted once"
+    assert p.applied_epoch == 0, "a vote changes nothing"
+    (no,) = p.receive_proposal(LayerState(3, ("Gps",)), now=0.2)
+    assert isinstance(no, PublishStatus) and not no.report.vote_yes
+    assert "Gps requires Outdoor" in no.report.vote_reason
+    p.critical_section_open = True
+    (busy,) = p.receive_proposal(LayerState(4, ("Outdoor",)), now=0.3, veto="arm moving")
+    assert isinstance(busy, PublishStatus)
+    assert busy.report.vote_reason == "arm moving; in a critical section"

@@ -1,6 +1,7 @@
 """A client that fires activation commands as fast as the manager answers them.
 
-Prints one JSON line per answer (`result` with epoch and success) and a final `done`.
+Prints one JSON line per answer (`result` with epoch, success and active layers) and a
+final `done`. `--sync` sends synchronous commands.
 `--layers A,B` alternates between activating A and activating B (one group, so each
 command replaces the other); `--toggle L` alternates activating and deactivating L.
 """
@@ -9,9 +10,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
 import rclpy
 from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
 
 from contextros.ros import LayerClient
 
@@ -22,8 +25,9 @@ def main() -> None:
     parser.add_argument("--count", type=int, default=100)
     parser.add_argument("--layers", default="")
     parser.add_argument("--toggle", default="")
-    args = parser.parse_args()
-    rclpy.init()
+    parser.add_argument("--sync", action="store_true", help="synchronous commands")
+    args = parser.parse_args(remove_ros_args(sys.argv)[1:])
+    rclpy.init(args=sys.argv)
     node = Node(args.name)
     client = LayerClient(node, requester=args.name)
     client.wait_for_manager(10.0)
@@ -33,8 +37,15 @@ def main() -> None:
             on, off = [alternatives[index % len(alternatives)]], []
         else:
             on, off = ([args.toggle], []) if index % 2 == 0 else ([], [args.toggle])
-        result = client.request(on, off, reason=f"{args.name} #{index}")
-        line = {"event": "result", "epoch": result.epoch, "success": result.success}
+        result = client.request(
+            on, off, reason=f"{args.name} #{index}", synchronous=args.sync, timeout=10.0
+        )
+        line = {
+            "event": "result",
+            "epoch": result.epoch,
+            "success": result.success,
+            "active": list(result.active),
+        }
         print(json.dumps(line | {"message": result.message}), flush=True)
     print(json.dumps({"event": "done"}), flush=True)
     node.destroy_node()

@@ -15,6 +15,7 @@ import threading
 import time
 
 import rclpy
+from rclpy.utilities import remove_ros_args
 
 from contextros.core import Layer, critical, layered, proceed
 from contextros.protocol import LayerState
@@ -27,7 +28,12 @@ LAYERS = {
     "Slow": Layer("Slow", excludes=("Fast",)),
     "Fast": Layer("Fast"),
     "Gps": Layer("Gps", requires=("Outdoor",)),
+    # The rescue robot's disasters (issue 11): Rubble's partials must wrap Flooded's.
+    "Rubble": Layer("Rubble", after=("Flooded",)),
+    "Flight": Layer("Flight"),
+    "Flooded": Layer("Flooded"),
 }
+DEFAULT_LAYERS = ("Indoor", "Outdoor", "Night", "Slow", "Fast", "Gps")
 
 
 class Cleaner:
@@ -69,11 +75,12 @@ def read_commands() -> None:
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("--name", required=True)
-    parser.add_argument("--layers", default=",".join(LAYERS))
+    parser.add_argument("--layers", default=",".join(DEFAULT_LAYERS))
     parser.add_argument("--heartbeat", type=float, default=0.25)
+    parser.add_argument("--manager-timeout", type=float, default=3.0)
     parser.add_argument("--stubborn", help="a layer whose on_deactivate hook always raises")
     parser.add_argument("--also", help="a second context node in this process (it is hosted)")
-    args = parser.parse_args()
+    args = parser.parse_args(remove_ros_args(sys.argv)[1:])
     if args.stubborn:
         old = LAYERS[args.stubborn]
 
@@ -88,14 +95,22 @@ def main() -> None:
             requires=old.requires,
             on_deactivate=refuse,
         )
-    rclpy.init()
+    rclpy.init(args=sys.argv)
     cleaner = Cleaner()
-    node = ContextNode(args.name, layers=args.layers.split(","), heartbeat_period=args.heartbeat)
+    node = ContextNode(
+        args.name,
+        layers=args.layers.split(","),
+        heartbeat_period=args.heartbeat,
+        manager_timeout=args.manager_timeout,
+    )
 
     def on_applied(state: LayerState) -> None:
         emit("applied", epoch=state.epoch, active=list(state.active), mode=cleaner.mode())
 
     node.context_participant.add_listener(on_applied)
+    node.context_participant.add_manager_listener(
+        lambda lost: emit("manager-lost" if lost else "manager-found")
+    )
     threading.Thread(target=read_commands, daemon=True).start()
     emit("ready", node=node.get_fully_qualified_name(), mode=cleaner.mode())
     nodes = [node]

@@ -18,6 +18,9 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 PARTICIPANT_SCRIPT = HERE / "participant_process.py"
 CLIENT_SCRIPT = HERE / "client_process.py"
+# The C++ twin of participant_process.py (cpp/ros/tests/participant_process.cpp), as
+# `make cpp` builds it.
+CPP_PARTICIPANT = HERE.parent.parent / "build/cpp/ros/contextros_test_participant"
 
 
 _held_domains: list[Any] = []  # open lock files, held for the life of this process
@@ -43,20 +46,35 @@ def reserve_domain_id(first: int, last: int = 229) -> int:
 class Child:
     """One process whose stdout lines are collected (JSON lines parsed) as they arrive."""
 
-    def __init__(self, name: str, argv: Sequence[str]) -> None:
+    def __init__(
+        self,
+        name: str,
+        argv: Sequence[str],
+        prefix: Sequence[str] = (),
+        env: dict[str, str | None] | None = None,
+        *,
+        program: str = sys.executable,
+    ) -> None:
+        """Run `prefix... program argv...` (by default this interpreter, so that the ROS
+        wheels' library path is this venv's), with `env` changing the environment."""
         self.name = name
         self.lines: list[str] = []
         self.events: list[dict[str, Any]] = []
         self._changed = threading.Condition()
-        env = dict(os.environ)
-        env.pop("RMW_IMPLEMENTATION", None)
+        environment = dict(os.environ)
+        environment.pop("RMW_IMPLEMENTATION", None)
+        for key, value in (env or {}).items():
+            if value is None:
+                environment.pop(key, None)
+            else:
+                environment[key] = value
         self.popen = subprocess.Popen(
-            [sys.executable, *argv],
+            [*prefix, program, *argv],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
             text=True,
-            env=env,
+            env=environment,
         )
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
@@ -126,16 +144,30 @@ class Child:
 
 
 class ProcessGroup:
-    def __init__(self) -> None:
+    def __init__(
+        self, prefix: Sequence[str] = (), env: dict[str, str | None] | None = None
+    ) -> None:
         self.children: list[Child] = []
+        # Every child runs behind this prefix (e.g. `ip netns exec NS`) with these changes
+        # to the environment (None removes a variable).
+        self.prefix = tuple(prefix)
+        self.env = env
 
     def start(self, name: str, argv: Sequence[str]) -> Child:
-        child = Child(name, argv)
+        child = Child(name, argv, self.prefix, self.env)
         self.children.append(child)
         return child
 
     def participant(self, name: str, *extra: str) -> Child:
         return self.start(name, [str(PARTICIPANT_SCRIPT), "--name", name, *extra])
+
+    def cpp_participant(self, name: str, *extra: str) -> Child:
+        """The C++ participant process (same layers, options and output as the Python one)."""
+        if not CPP_PARTICIPANT.exists():
+            raise AssertionError(f"{CPP_PARTICIPANT} is not built: run `make cpp`")
+        child = Child(name, ["--name", name, *extra], program=str(CPP_PARTICIPANT))
+        self.children.append(child)
+        return child
 
     def manager(self, *extra: str, name: str = "manager") -> Child:
         return self.start(name, ["-m", "contextros", "manager", *extra])

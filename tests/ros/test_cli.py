@@ -6,6 +6,7 @@ import json
 import os
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -54,6 +55,11 @@ def test_unknown_layer_exits_non_zero_with_the_managers_message(system: RunningS
     assert refused.returncode == 1
     assert "unknown layer 'Underwater'" in refused.stderr
     assert "nothing changed" in refused.stderr
+    # The manager logs every refusal (issue 12), after answering.
+    deadline = time.monotonic() + 5
+    while "refused: unknown layer 'Underwater'" not in system.manager.output():
+        assert time.monotonic() < deadline, system.manager.output()
+        time.sleep(0.05)
 
 
 def test_status_shows_layers_nodes_and_epochs(system: RunningSystem, client: LayerClient) -> None:
@@ -91,6 +97,18 @@ def test_watch_streams_switches_with_latency(
     assert switches == [("current", current), ("state", result.epoch), ("applied", result.epoch)]
     applied = watch.events[-1]
     assert applied["nodes"] == 2 and 0 <= applied["latency_ms"] < 1000
+    replayed = next(e for e in watch.events if e["event"] == "current")
+    assert replayed["replayed"] is True and "delivery_ms" not in replayed  # an age instead
+    fresh = next(e for e in watch.events if e["event"] == "state")
+    assert fresh["replayed"] is False and 0 <= fresh["delivery_ms"] < 1000
+
+
+def test_a_deactivation_that_changes_nothing_says_so(system: RunningSystem) -> None:
+    done = contextros("deactivate", "Night", "--sync")
+    assert done.returncode == 0, done.stderr
+    again = contextros("deactivate", "Night", "--sync")
+    assert again.returncode == 0, again.stderr
+    assert "no change" in again.stdout and "acknowledged by" not in again.stdout
 
 
 def test_no_manager_exits_with_status_3() -> None:
@@ -106,3 +124,46 @@ def test_manager_refuses_a_damaged_state_file(tmp_path: Path) -> None:
     refused = contextros("manager", "--state-file", str(damaged))
     assert refused.returncode == 1
     assert "not a ContextROS state file" in refused.stderr and str(damaged) in refused.stderr
+
+
+def test_sync_fails_unless_the_expected_nodes_applied_it(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    settle(client)
+    missing = contextros(
+        "activate", "Night", "--sync", "--timeout", "0.5", "--expect", "/cli1", "/robot_arm"
+    )
+    assert missing.returncode == 1, missing.stdout
+    assert "expected node /robot_arm did not apply it" in missing.stderr
+    counted = contextros("deactivate", "Night", "--sync", "--expect-count", "2")
+    assert counted.returncode == 0, counted.stderr
+    too_many = contextros("activate", "Night", "--sync", "--timeout", "0.5", "--expect-count", "3")
+    assert too_many.returncode == 1
+    assert "applied by 2 node(s), 3 expected" in too_many.stderr
+    usage = contextros("activate", "Night", "--expect", "/cli1")
+    assert usage.returncode == 2 and "need --sync or --atomic" in usage.stderr
+
+
+def test_the_client_api_has_one_default_and_exports_its_errors(
+    system: RunningSystem, client: LayerClient
+) -> None:
+    """Issue 12: ActivationFailed from contextros.ros, one default (asynchronous, as the CLI
+    without --sync) for request, request_async, activate and deactivate."""
+    import inspect
+
+    from contextros import protocol
+    from contextros.ros import ActivationFailed, ActivationResult, ManagerError
+
+    assert ActivationFailed is protocol.ActivationFailed and issubclass(
+        ActivationFailed, ManagerError
+    )
+    defaults = {
+        name: inspect.signature(getattr(LayerClient, name)).parameters["synchronous"].default
+        for name in ("request", "request_async", "activate", "deactivate")
+    }
+    assert set(defaults.values()) == {False}, defaults
+    with pytest.raises(ActivationFailed, match="unknown layer 'Underwater'"):
+        client.activate("Underwater")
+    settle(client)
+    result = client.activate("Night", synchronous=True, timeout=5)
+    assert isinstance(result, ActivationResult) and result.active[-1] == "Night"

@@ -176,3 +176,51 @@ def test_asynchronous_request_from_a_callback_style_future(
     assert result.acknowledged == (), "asynchronous: answered once published"
     for child in system.participants.values():
         assert child.wait_applied(result.epoch)["active"] == ["Indoor", "Night"]
+
+
+def test_concurrent_synchronous_answers_describe_their_own_epoch(
+    system: RunningSystem, client: LayerClient, processes: ProcessGroup
+) -> None:
+    """Issue 10: with 3 concurrent clients, 173 of 564 answers carried a later epoch's
+    layers. Each answer's layers must be those its epoch had in every node."""
+    settle(client, "Indoor")
+    script = str(CLIENT_SCRIPT)
+    clients = [
+        processes.start(
+            "client-location",
+            [
+                script,
+                "--name",
+                "s_location",
+                "--count",
+                "30",
+                "--layers",
+                "Indoor,Outdoor",
+                "--sync",
+            ],
+        ),
+        processes.start(
+            "client-night",
+            [script, "--name", "s_night", "--count", "30", "--toggle", "Night", "--sync"],
+        ),
+        processes.start(
+            "client-slow",
+            [script, "--name", "s_slow", "--count", "30", "--toggle", "Slow", "--sync"],
+        ),
+    ]
+    answers = []
+    for child in clients:
+        child.wait_for(lambda events: any(e["event"] == "done" for e in events), 90, "done")
+        answers += [e for e in child.events if e["event"] == "result"]
+    assert all(a["success"] for a in answers), [a["message"] for a in answers if not a["success"]]
+    final = client.query().epoch
+    applied: dict[int, list[str]] = {}
+    for child in system.participants.values():
+        child.wait_applied(final, timeout=5)
+        for event in child.applied():
+            known = applied.setdefault(event["epoch"], event["active"])
+            assert known == event["active"], f"two configurations for epoch {event['epoch']}"
+    checked = [a for a in answers if a["epoch"] in applied]
+    assert len(checked) >= len(answers) // 2, "enough answers can be checked"
+    wrong = [a for a in checked if a["active"] != applied[a["epoch"]]]
+    assert wrong == [], f"{len(wrong)} of {len(checked)} answers show another epoch's layers"

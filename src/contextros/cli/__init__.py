@@ -8,6 +8,7 @@ from collections.abc import Sequence
 
 from contextros import __version__
 from contextros.cli import language_commands, ros_commands
+from contextros.cli.ros_arguments import split_ros_arguments
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,7 +26,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
-    args = parser.parse_args(argv)
+    # Standard ROS arguments (`--ros-args -r __ns:=/robot1 ...`) go to rclpy, untouched.
+    own, ros_arguments = split_ros_arguments(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(own)
+    args.ros_arguments = ros_arguments
     if args.command is None:
         parser.print_help()
         return 0

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
-from contextros.language.checker import check_file
-from contextros.language.compiler import compile_source
-from contextros.language.diagnostics import LayerSyntaxError
+from contextros.language.flavours import LANGUAGES, language_of, parse_with_diagnostics
 
 
 def register(commands: Any) -> None:
@@ -19,16 +18,28 @@ def register(commands: Any) -> None:
     """
     compile_parser = commands.add_parser(
         "compile",
-        help="translate a .layers file into a Python module",
-        description="Translate a layer description into a readable Python module: one "
-        "function per layer and method, one dispatch function per method.",
+        help="translate a layer file into a Python module or C++ source and header",
+        description="Translate a layer description into readable code: one function per "
+        "layer and method, one dispatch function per method. NAME.layers is Python (a "
+        "module NAME.py); NAME.cpp.layers is C++ (NAME.layers.cpp and NAME.layers.hpp).",
     )
     compile_parser.add_argument("file", metavar="FILE.layers", help="the layer file")
     compile_parser.add_argument(
         "-o",
         "--output",
-        metavar="OUT.py",
-        help="where to write the module (default: FILE.py next to FILE.layers; '-' for stdout)",
+        metavar="OUT",
+        help="where to write the module or the C++ source (default: next to the layer file; "
+        "'-' for stdout). A C++ header goes beside it, OUT with .hpp for .cpp",
+    )
+    compile_parser.add_argument(
+        "--language",
+        choices=LANGUAGES,
+        help="the layer file's flavour (default: from its name, NAME.cpp.layers is C++)",
+    )
+    compile_parser.add_argument(
+        "--no-header",
+        action="store_true",
+        help="C++: put the header part into the source instead of a separate header",
     )
     compile_parser.set_defaults(run=run_compile)
 
@@ -44,7 +55,32 @@ def register(commands: Any) -> None:
         nargs="+",
         help="layer files, or directories to search for *.layers files",
     )
+    check_parser.add_argument(
+        "--language",
+        choices=LANGUAGES,
+        help="the files' flavour (default: from each name, NAME.cpp.layers is C++)",
+    )
+    check_parser.add_argument(
+        "--activation",
+        nargs="+",
+        metavar="LAYER",
+        help="also warn where activating these layers in this order contradicts the "
+        "declared 'after' orders (the order you would give `contextros activate`)",
+    )
     check_parser.set_defaults(run=run_check)
+
+
+_KINDS = {".py": "a Python module", ".cpp": "C++ source", ".hpp": "a C++ header", ".h": "a header"}
+
+
+def _not_layers(path: Path) -> str:
+    """Why `path` is not something to check ('' when it is a layer file)."""
+    if path.is_dir():
+        return "" if any(path.rglob("*.layers")) else "a directory with no *.layers file in it"
+    if path.name.endswith(".layers"):
+        return ""
+    kind = _KINDS.get(path.suffix, f"a '{path.suffix}' file" if path.suffix else "a file")
+    return f"{kind}, not a layer file (layer files end in .layers)"
 
 
 def _layer_files(names: list[str]) -> list[Path]:
@@ -56,35 +92,118 @@ def _layer_files(names: list[str]) -> list[Path]:
 
 
 def run_check(args: argparse.Namespace) -> int:
+    from contextros.language.checker import check_file  # imported here: a fast CLI start
+
     errors = 0
-    for path in _layer_files(args.files):
-        for diagnostic in check_file(path):
+    for name in args.files:
+        problem = _not_layers(Path(name))
+        if problem:
+            print(f"{name}: error: {problem}; nothing checked")
+            errors += 1
+    for path in _layer_files([n for n in args.files if not _not_layers(Path(n))]):
+        diagnostics = check_file(path, args.language)
+        if args.activation and not any(d.is_error for d in diagnostics):
+            diagnostics += _activation_warnings(path, args.activation, args.language)
+        for diagnostic in diagnostics:
             print(diagnostic.render())
             errors += diagnostic.is_error
     return 1 if errors else 0
 
 
+def _activation_warnings(path: Path, activation: list[str], language: str | None) -> list[Any]:
+    from contextros.language.checker import check_activation_order
+
+    source = path.read_text(encoding="utf-8")  # readable: check_file found no error
+    layer_file, _ = parse_with_diagnostics(source, str(path), language)
+    return check_activation_order(layer_file, activation)
+
+
+def _shown_path(source: Path, output: Path | None) -> str:
+    """How the compiled module names its source: relative to the module's own directory
+    (the bare file name when they sit side by side; for stdout too), never as typed on
+    the command line, so that the output does not depend on the working directory."""
+    if output is None:
+        return source.name
+    return Path(os.path.relpath(source.resolve(), output.resolve().parent)).as_posix()
+
+
 def run_compile(args: argparse.Namespace) -> int:
+    from contextros.language.compiler import compile_source
+    from contextros.language.diagnostics import LayerSyntaxError
+
     source_path = Path(args.file)
     try:
         source = source_path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         print(f"{args.file}:1:1: error: cannot read the layer file: {error}", file=sys.stderr)
         return 1
+    if language_of(source_path, args.language) == "cpp":
+        return _compile_cpp(args, source)
     try:
-        compiled = compile_source(source, args.file)
+        compiled = compile_source(source, args.file)  # diagnostics name the file as typed
     except LayerSyntaxError as error:
         print(error.render(), file=sys.stderr)
         return 1
     for warning in compiled.warnings:
         print(warning.render(), file=sys.stderr)
-    if args.output == "-":
+    output = None if args.output == "-" else Path(args.output or source_path.with_suffix(".py"))
+    shown = _shown_path(source_path, output)
+    if shown != args.file:
+        compiled = compile_source(source, shown)
+    if output is None:
         sys.stdout.write(compiled.text)
         return 0
-    output = Path(args.output) if args.output else source_path.with_suffix(".py")
     try:
         output.write_text(compiled.text, encoding="utf-8")
     except OSError as error:
         print(f"contextros compile: cannot write {output}: {error}", file=sys.stderr)
         return 1
     return 0
+
+
+def _compile_cpp(args: argparse.Namespace, source: str) -> int:
+    from contextros.language.cpp.generator import compile_cpp
+    from contextros.language.diagnostics import LayerSyntaxError
+
+    source_path = Path(args.file)
+    if args.output:
+        output = args.output
+    else:
+        stem = source_path.name.removesuffix(".layers").removesuffix(".cpp")
+        output = str(source_path.with_name(f"{stem}.layers.cpp"))
+    to_stdout = output == "-"
+    try:
+        compiled = compile_cpp(
+            source,
+            args.file,
+            output=None if to_stdout else output,
+            header=not (args.no_header or to_stdout),
+        )
+    except LayerSyntaxError as error:
+        print(error.render(), file=sys.stderr)
+        return 1
+    for warning in compiled.warnings:
+        print(warning.render(), file=sys.stderr)
+    if to_stdout:
+        sys.stdout.write(compiled.source)
+        return 0
+    files = [(Path(output), compiled.source)]
+    if compiled.header is not None and compiled.header_name is not None:
+        files.append((Path(output).with_name(compiled.header_name), compiled.header))
+    for path, text in files:
+        try:
+            _write_if_changed(path, text)
+        except OSError as error:
+            print(f"contextros compile: cannot write {path}: {error}", file=sys.stderr)
+            return 1
+    return 0
+
+
+def _write_if_changed(path: Path, text: str) -> None:
+    """Leave an unchanged output untouched, so a build does not recompile what includes it."""
+    try:
+        if path.read_text(encoding="utf-8") == text:
+            return
+    except (OSError, UnicodeDecodeError):
+        pass
+    path.write_text(text, encoding="utf-8")

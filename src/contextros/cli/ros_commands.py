@@ -16,7 +16,9 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
+from contextros.protocol.relations import ORDER_NOTE
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -24,7 +26,47 @@ if TYPE_CHECKING:
 # Exit statuses: 0 success, 1 the manager refused or nodes did not acknowledge,
 # 3 no manager reachable (argparse itself uses 2 for usage errors).
 FAILED = 1
+USAGE = 2
 NO_MANAGER = 3
+
+
+class _RosArgumentsError(Exception):
+    """The ROS arguments or the namespace given on the command line are not usable."""
+
+
+def _add_namespace_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--namespace",
+        metavar="NS",
+        help="the robot's namespace (e.g. /robot1): the manager's topics and services are "
+        "resolved in it; same as --ros-args -r __ns:=NS",
+    )
+
+
+@contextmanager
+def _ros(args: argparse.Namespace) -> Iterator[None]:
+    """rclpy initialised with the command line's ROS arguments and --namespace."""
+    import rclpy
+
+    namespace = getattr(args, "namespace", None)
+    if namespace is not None and (problem := namespace_problem(namespace)):
+        raise _RosArgumentsError(problem)
+    arguments = rclpy_arguments("contextros", getattr(args, "ros_arguments", []), namespace)
+    try:
+        rclpy.init(args=arguments)
+    except Exception as error:  # rclpy raises its RCLError, not exported as a type
+        raise _RosArgumentsError(
+            f"invalid ROS arguments {' '.join(arguments[1:])!r}: {error}"
+        ) from error
+    try:
+        yield
+    finally:
+        rclpy.try_shutdown()
+
+
+def _usage_error(error: _RosArgumentsError) -> int:
+    print(f"contextros: {error}", file=sys.stderr)
+    return USAGE
 
 
 def register(commands: Any) -> None:
@@ -40,9 +82,9 @@ def register(commands: Any) -> None:
     manager.add_argument(
         "--liveness-timeout",
         type=float,
-        default=2.0,
+        default=3.0,
         metavar="S",
-        help="drop a participant silent for this long (default 2 s)",
+        help="drop a participant silent for this long (default 3 s: 12 heartbeats)",
     )
     manager.add_argument(
         "--default-timeout",
@@ -58,6 +100,17 @@ def register(commands: Any) -> None:
         metavar="S",
         help="listen to participants this long before the first state (default 1 s)",
     )
+    manager.add_argument(
+        "--layers",
+        "--rules",
+        dest="layer_files",
+        nargs="+",
+        default=[],
+        metavar="FILE.layers",
+        help="run the context rules (docs/rules.md) and apply the parameter and lifecycle "
+        "declarations (docs/ros-integration.md) of these layer files",
+    )
+    _add_namespace_option(manager)
     manager.set_defaults(run=run_manager)
 
     activate = commands.add_parser("activate", help="activate layers on every context node")
@@ -93,6 +146,7 @@ def register(commands: Any) -> None:
     )
     watch.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     watch.add_argument("--json", action="store_true", help="one JSON object per line")
+    _add_namespace_option(watch)
     watch.set_defaults(run=run_watch)
 
 
@@ -104,6 +158,7 @@ def _add_connection_options(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="how long to look for the manager (default 5 s)",
     )
+    _add_namespace_option(parser)
 
 
 def _add_command_options(parser: argparse.ArgumentParser) -> None:
@@ -119,6 +174,25 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="synchronous timeout (default: the manager's)",
     )
+    parser.add_argument(
+        "--atomic",
+        action="store_true",
+        help="every node votes first: all switch or none does (the answer names who vetoed)",
+    )
+    parser.add_argument(
+        "--expect",
+        nargs="+",
+        default=[],
+        metavar="NODE",
+        help="with --sync: fail unless these nodes applied it (even if the manager dropped them)",
+    )
+    parser.add_argument(
+        "--expect-count",
+        type=int,
+        default=0,
+        metavar="N",
+        help="with --sync: fail unless at least N nodes applied it",
+    )
     parser.add_argument("--reason", default="", help="recorded with the new state")
     parser.add_argument("--json", action="store_true", help="print the answer as JSON")
     _add_connection_options(parser)
@@ -127,9 +201,26 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
 # -- the manager ----------------------------------------------------------------------------
 
 
-def run_manager(args: argparse.Namespace) -> int:
-    import rclpy
+# Fast DDS reads its default profile file from these variables (the second: Fast DDS 2).
+_FASTDDS_PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
 
+
+def _announce_often() -> None:
+    """Make the manager's participant announce itself every 0.2 s (Fast DDS default: 3 s),
+    so that short-lived clients discover it fast; only with Fast DDS, and never over a
+    profile file the user chose."""
+    rmw = os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+    if not rmw.startswith("rmw_fastrtps") or any(
+        os.environ.get(name) for name in _FASTDDS_PROFILE_VARIABLES
+    ):
+        return
+    profile = Path(__file__).resolve().parent.parent / "ros" / "manager_discovery.xml"
+    if profile.is_file():
+        os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+
+
+def run_manager(args: argparse.Namespace) -> int:
+    _announce_often()  # before rclpy creates the participant
     from contextros.protocol import ManagerSettings
     from contextros.ros import LayerManagerNode, spin_nodes
 
@@ -138,15 +229,29 @@ def run_manager(args: argparse.Namespace) -> int:
         default_timeout=args.default_timeout,
         recovery_window=args.recovery_window,
     )
-    rclpy.init()
+    rules = bindings = None
+    if args.layer_files:
+        from contextros.bindings import Bindings
+        from contextros.rules import RuleSet
+
+        try:
+            rules = RuleSet.from_files(args.layer_files)
+            bindings = Bindings.from_files(args.layer_files)
+        except LayerError as error:
+            print(f"contextros manager: the layer files have errors:\n{error}", file=sys.stderr)
+            return USAGE
     try:
-        node = LayerManagerNode(settings=settings, state_file=args.state_file)
-    except LayerError as error:
-        print(f"contextros manager: {error}", file=sys.stderr)
-        rclpy.try_shutdown()
-        return FAILED
-    spin_nodes([node])
-    rclpy.try_shutdown()
+        with _ros(args):
+            try:
+                node = LayerManagerNode(
+                    settings=settings, state_file=args.state_file, rules=rules, bindings=bindings
+                )
+            except LayerError as error:
+                print(f"contextros manager: {error}", file=sys.stderr)
+                return FAILED
+            spin_nodes([node])
+    except _RosArgumentsError as error:
+        return _usage_error(error)
     return 0
 
 
@@ -154,45 +259,70 @@ def run_manager(args: argparse.Namespace) -> int:
 
 
 @contextmanager
-def _client(purpose: str) -> Iterator[LayerClient]:
-    """A LayerClient on a short-lived node of this command's own, torn down on the way out."""
-    import rclpy
+def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
+    """A LayerClient on a short-lived node of this command's own (in the namespace the
+    command line gives), torn down on the way out."""
     from rclpy.node import Node
 
     from contextros.ros import LayerClient
 
-    rclpy.init()
-    node = Node(f"contextros_{purpose}_{os.getpid()}")
-    try:
-        yield LayerClient(node)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    with _ros(args):
+        node = Node(f"contextros_{purpose}_{os.getpid()}")
+        try:
+            yield LayerClient(node)
+        finally:
+            node.destroy_node()
 
 
 def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     if not on and not off:
         print("contextros: name layers to activate (--on) or deactivate (--off)", file=sys.stderr)
         return 2
-    with _client("cli") as client:
-        try:
-            client.wait_for_manager(args.wait_manager)
-        except LayerError as error:
-            print(f"contextros: {error}", file=sys.stderr)
-            return NO_MANAGER
-        try:
-            result = client.request(
-                on, off, synchronous=args.sync, timeout=args.timeout, reason=args.reason
-            )
-        except LayerError as error:
-            print(f"contextros: {error}", file=sys.stderr)
-            return FAILED
+    if (args.expect or args.expect_count) and not (args.sync or args.atomic):
+        print("contextros: --expect and --expect-count need --sync or --atomic", file=sys.stderr)
+        return 2
+    if args.expect_count < 0:
+        print("contextros: --expect-count must be 0 or more", file=sys.stderr)
+        return 2
+    try:
+        with _client(args, "cli") as client:
+            try:
+                client.wait_for_manager(args.wait_manager)
+            except LayerError as error:
+                print(f"contextros: {error}", file=sys.stderr)
+                return NO_MANAGER
+            try:
+                result = client.request(
+                    on,
+                    off,
+                    synchronous=args.sync,
+                    timeout=args.timeout,
+                    reason=args.reason,
+                    expect_nodes=args.expect,
+                    expect_count=args.expect_count,
+                    atomic=args.atomic,
+                )
+            except LayerError as error:
+                print(f"contextros: {error}", file=sys.stderr)
+                return FAILED
+    except _RosArgumentsError as error:
+        return _usage_error(error)
+    moved = _reordered(on, result.active, result.message)
+    if moved and result.success:
+        print(
+            f"contextros: warning: activation order {', '.join(on)} contradicts the declared "
+            f"order ({moved}); the manager composed [{', '.join(result.active)}] "
+            "(last = outermost)",
+            file=sys.stderr,
+        )
     if args.json:
         print(json.dumps(result.__dict__ | {"active": list(result.active)}, default=list))
     else:
         layers = ", ".join(result.active) or "none"
         print(f"epoch {result.epoch}: active [{layers}]")
-        if result.acknowledged or result.not_acknowledged:
+        if result.success and result.message.startswith("no change"):
+            print(result.message)
+        elif result.acknowledged or result.not_acknowledged:
             print(
                 f"acknowledged by {len(result.acknowledged)} node(s) "
                 f"in {result.elapsed * 1000:.1f} ms"
@@ -203,14 +333,28 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     return 0
 
 
+def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> str:
+    """Why the manager composed the requested layers in another order ("" if it did not):
+    the declarations its answer names ('Rubble after Flooded')."""
+    position = {name: index for index, name in enumerate(active)}
+    present = [name for name in dict.fromkeys(requested) if name in position]
+    if present == sorted(present, key=position.__getitem__):
+        return ""
+    _, _, declared = message.partition(ORDER_NOTE)
+    return declared or "declared with 'after'"
+
+
 def run_status(args: argparse.Namespace) -> int:
-    with _client("status") as client:
-        try:
-            client.wait_for_manager(args.wait_manager)
-            registry = client.query()
-        except LayerError as error:
-            print(f"contextros: {error}", file=sys.stderr)
-            return NO_MANAGER
+    try:
+        with _client(args, "status") as client:
+            try:
+                client.wait_for_manager(args.wait_manager)
+                registry = client.query()
+            except LayerError as error:
+                print(f"contextros: {error}", file=sys.stderr)
+                return NO_MANAGER
+    except _RosArgumentsError as error:
+        return _usage_error(error)
     if args.json:
         print(json.dumps(_registry_as_dict(registry), indent=2))
     else:
@@ -230,7 +374,8 @@ def _registry_as_dict(registry: Any) -> dict[str, Any]:
                 "name": layer.name,
                 "group": layer.group,
                 "excludes": list(layer.excludes),
-                "requires": list(layer.requires),
+                "requires": list(layer.required),
+                "after": list(layer.after),
                 "implemented_by": [n for n in nodes.split(",") if n],
             }
             for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
@@ -244,12 +389,28 @@ def _registry_as_dict(registry: Any) -> dict[str, Any]:
                 "silent_for": round(p.silent_for, 3),
                 "lagging": p.lagging,
                 "hosted_nodes": list(p.hosted_nodes),
+                "incarnation": p.incarnation,
+                "conflict": p.conflict,
             }
             for p in registry.participants
         ],
+        "conflicts": list(registry.conflicts),
         "dropped": list(registry.dropped),
         "recovering": registry.recovering,
+        "declared_order": _declared_order(registry),
     }
+
+
+def _declared_order(registry: Any) -> list[str]:
+    """The `after` declarations among the active layers: the manager composed them so."""
+    active = list(registry.active_layers)
+    return [
+        f"{layer.name} after {earlier}"
+        for layer in registry.layers
+        if layer.name in active
+        for earlier in layer.after
+        if earlier in active
+    ]
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -268,6 +429,12 @@ def _registry_as_text(registry: Any) -> str:
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]
     if data["recovering"]:
         parts[0] += "  - the manager is still recovering (listening to participants)"
+    if data["declared_order"]:
+        parts.insert(
+            1,
+            "composed in the declared order (last = outermost): "
+            + ", ".join(data["declared_order"]),
+        )
     layer_rows = [
         [
             layer["name"],
@@ -275,17 +442,19 @@ def _registry_as_text(registry: Any) -> str:
             layer["group"],
             ", ".join(layer["excludes"]),
             ", ".join(layer["requires"]),
+            ", ".join(layer["after"]),
             ", ".join(layer["implemented_by"]),
         ]
         for layer in data["layers"]
     ]
-    parts.append(_table(["LAYER", "ACTIVE", "GROUP", "EXCLUDES", "REQUIRES", "NODES"], layer_rows))
+    header = ["LAYER", "ACTIVE", "GROUP", "EXCLUDES", "REQUIRES", "AFTER", "NODES"]
+    parts.append(_table(header, layer_rows))
     parts.append("")
     node_rows = [
         [
             p["node"],
             str(p["applied_epoch"]),
-            "LAGS" if p["lagging"] else "ok",
+            "TWIN" if p["conflict"] else "LAGS" if p["lagging"] else "ok",
             "yes" if p["in_critical_section"] else "",
             f"{p['silent_for']:.1f} s",
             ", ".join(p["layers"]),
@@ -295,91 +464,62 @@ def _registry_as_text(registry: Any) -> str:
     ]
     header = ["NODE", "EPOCH", "STATE", "CRITICAL", "LAST HEARD", "LAYERS", "ALSO FOR"]
     parts.append(_table(header, node_rows))
+    for name in data["conflicts"]:
+        parts += [
+            "",
+            f"CONFLICT: more than one live process is named {name} (state TWIN): each must "
+            "acknowledge for itself; give every context node a unique name",
+        ]
     if data["dropped"]:
         parts += ["", f"dropped: {', '.join(data['dropped'])}"]
     return "\n".join(parts)
 
 
 def run_watch(args: argparse.Namespace) -> int:
-    import rclpy
+    try:
+        with _ros(args):
+            return _watch(args)
+    except _RosArgumentsError as error:
+        return _usage_error(error)
+
+
+def _watch(args: argparse.Namespace) -> int:
     from contextros_interfaces.msg import LayerState, ParticipantStatus
     from rclpy.node import Node
 
+    from contextros.cli.watching import SwitchWatch
     from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, spin_nodes
     from contextros.ros.messages import stamp_to_seconds
 
-    rclpy.init()
     node = Node(f"contextros_watch_{os.getpid()}")
-    switches = 0
-    last_switch = 0.0
-    # Per epoch: when it was published, the live nodes that must apply it, and who has not.
-    waiting: dict[int, tuple[float, int, set[str]]] = {}
-    last_heard: dict[str, float] = {}
-    applied: dict[str, int] = {}
-
-    def live_nodes() -> set[str]:
-        now = time.monotonic()
-        return {n for n, t in last_heard.items() if now - t < 2.0}
+    watch = SwitchWatch(started=time.time())
 
     def on_state(msg: Any) -> None:
-        nonlocal switches, last_switch
-        published = stamp_to_seconds(msg.stamp)
-        # The first message is the state as it stood when we connected (transient local).
-        first = switches == 0 and last_switch == 0.0
-        record = {
-            "event": "current" if first else "state",
-            "epoch": msg.epoch,
-            "active": list(msg.active_layers),
-            "requester": msg.requester,
-            "reason": msg.reason,
-            "delivery_ms": round((time.time() - published) * 1000, 3),
-        }
-        last_switch = time.monotonic()
-        _print_watch(args.json, record)
-        if first:
-            return
-        switches += 1
-        pending = {n for n in live_nodes() if applied.get(n, 0) < msg.epoch}
-        waiting[msg.epoch] = (published, len(pending), pending)
-        if not pending:
-            _report_applied(args.json, published, msg.epoch, 0)
-            del waiting[msg.epoch]
+        records = watch.state(
+            msg.epoch,
+            list(msg.active_layers),
+            msg.requester,
+            msg.reason,
+            published=stamp_to_seconds(msg.stamp),
+            wall=time.time(),
+            now=time.monotonic(),
+        )
+        for record in records:
+            _print_watch(args.json, record)
 
     def on_status(msg: Any) -> None:
-        if msg.leaving:
-            if last_heard.pop(msg.node, None) is not None:
-                _print_watch(args.json, {"event": "node-left", "node": msg.node})
-        else:
-            if msg.node not in live_nodes():
-                _print_watch(args.json, {"event": "node", "node": msg.node})
-            last_heard[msg.node] = time.monotonic()
-        applied[msg.node] = msg.applied_epoch
-        for epoch, (published, count, pending) in sorted(waiting.items()):
-            if msg.applied_epoch >= epoch or msg.leaving:
-                pending.discard(msg.node)
-            if not pending:
-                del waiting[epoch]
-                _report_applied(args.json, published, epoch, count)
-
-    def finished() -> bool:
-        # After the last counted switch, wait (a little) for its acknowledgements too.
-        if args.count is None or switches < args.count:
-            return False
-        return not waiting or time.monotonic() - last_switch > 2.0
+        records = watch.status(
+            msg.node, msg.applied_epoch, msg.leaving, wall=time.time(), now=time.monotonic()
+        )
+        for record in records:
+            _print_watch(args.json, record)
 
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
-    spin_nodes([node], until=finished, timeout=args.duration)
-    rclpy.try_shutdown()
-    return 0
-
-
-def _report_applied(as_json: bool, published: float, epoch: int, nodes: int) -> None:
-    latency = (time.time() - published) * 1000
-    _print_watch(
-        as_json,
-        {"event": "applied", "epoch": epoch, "nodes": nodes, "latency_ms": round(latency, 3)},
+    spin_nodes(
+        [node], until=lambda: watch.finished(args.count, time.monotonic()), timeout=args.duration
     )
+    return 0
 
 
 def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
@@ -392,8 +532,8 @@ def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
         active = ", ".join(record["active"]) or "none"
         who = f"{record['requester'] or '?'}: {record['reason'] or '-'}"
         timing = (
-            "current state"
-            if record["event"] == "current"
+            f"current state (replayed, published {record['age_s']:.1f} s ago)"
+            if record["replayed"]
             else f"delivered in {record['delivery_ms']:.2f} ms"
         )
         print(f"epoch {record['epoch']:>6}  [{active}]  ({who})  {timing}", flush=True)

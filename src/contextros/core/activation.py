@@ -110,6 +110,54 @@ def critical() -> AbstractContextManager[None]:
     return RUNTIME.critical()
 
 
+def activate_for(target: object, *layers: LayerLike) -> Configuration:
+    """Activate `layers` for one object, or class-wide for a class (its instances and its
+    subclasses'), on top of the decisive configuration; returns the target's configuration.
+
+    Composition order for a call on an object: decisive layers, then class-wide layers
+    of its classes from the most general base to its own class, then the object's own,
+    then the caller's `with activated/deactivated` scope; within each, the later step is
+    outermost. Relations are checked against the result (RelationError: no change).
+    Only layered methods, classmethods and property getters of the classes concerned take
+    the per-receiver path; free functions and staticmethods have no receiver.
+    """
+    return _change_for(target, tuple((True, layer) for layer in _resolve_all(layers)))
+
+
+def deactivate_for(target: object, *layers: LayerLike) -> Configuration:
+    """Deactivate `layers` for one object (or class-wide for a class), even while they are
+    decisively active; see `activate_for`."""
+    return _change_for(target, tuple((False, layer) for layer in _resolve_all(layers)))
+
+
+def reset_for(target: object, *layers: LayerLike) -> Configuration:
+    """Forget `target`'s own activations and deactivations of `layers` (all when none are
+    named): it follows its class and the decisive configuration again."""
+    with RUNTIME.lock:
+        RUNTIME.receivers.change(target, (), _resolve_all(layers))
+        return layers_for(target)
+
+
+def layers_for(target: object) -> Configuration:
+    """The layers a call on `target` (an object, or a class for its classmethods) sees from
+    here: decisive, class-wide, per-object and the caller's scope, oldest first."""
+    return RUNTIME.effective(target)
+
+
+def _change_for(target: object, steps: tuple[tuple[bool, Layer], ...]) -> Configuration:
+    with RUNTIME.lock:
+        RUNTIME.receivers.change(target, steps, None)
+        return layers_for(target)
+
+
+def remove_layer(layer: LayerLike) -> tuple[str, ...]:
+    """Remove a layer at run time: deactivate it if it is decisively active (validated:
+    a RelationError changes nothing), drop its partial methods from every layered
+    function (each is rewired at once) and forget its definition. Returns the qualified
+    names of the functions it refined. Scopes still naming it see a transparent layer."""
+    return RUNTIME.remove_layer(resolve(layer))
+
+
 def subscribe(observer: Callable[[SwitchEvent], object]) -> Callable[[], None]:
     """Call `observer(event)` after every applied decisive switch; returns unsubscribe."""
     return RUNTIME.subscribe(observer)
@@ -117,13 +165,18 @@ def subscribe(observer: Callable[[SwitchEvent], object]) -> Callable[[], None]:
 
 __all__ = [
     "activate",
+    "activate_for",
     "activated",
     "active_layers",
     "critical",
     "current_epoch",
     "deactivate",
+    "deactivate_for",
     "deactivated",
     "in_critical_section",
+    "layers_for",
+    "remove_layer",
+    "reset_for",
     "set_active",
     "subscribe",
     "switch",

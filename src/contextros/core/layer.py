@@ -41,6 +41,10 @@ class Layer:
     - ``requires``: may only be active while these layers are active.
     - ``group``: an exclusive group; activating a member deactivates the other
       members in the same atomic switch.
+    - ``after``: when both are active, this layer comes after (outside) those: its
+      partials run first. The core composes by activation order and does not reorder;
+      the Layer manager composes the system's active set in this order (participants
+      announce it), and ``contextros.language.activation_order`` computes it locally.
 
     Hooks take no arguments. On a switch, ``on_deactivate`` hooks of the leaving
     layers run first (newest layer first, while they are still active), then the new
@@ -49,6 +53,7 @@ class Layer:
     """
 
     __slots__ = (
+        "after",
         "description",
         "excludes",
         "group",
@@ -62,6 +67,7 @@ class Layer:
     description: str
     excludes: frozenset[str]
     requires: frozenset[str]
+    after: frozenset[str]
     group: str | None
     on_activate: Hook | None
     on_deactivate: Hook | None
@@ -76,6 +82,7 @@ class Layer:
         group: str | None = None,
         on_activate: Hook | None = None,
         on_deactivate: Hook | None = None,
+        after: Iterable[Layer | str] | Layer | str = (),
     ) -> None:
         if not isinstance(name, str) or not name.isidentifier():
             raise LayerDefinitionError(
@@ -93,6 +100,7 @@ class Layer:
         if self.excludes & self.requires:
             both = ", ".join(sorted(self.excludes & self.requires))
             raise LayerDefinitionError(f"layer {name!r} both requires and excludes {both}")
+        self.after = _names(after, layer=name, relation="come after")
         self.group = group
         self.on_activate = on_activate
         self.on_deactivate = on_deactivate

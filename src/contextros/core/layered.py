@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
 from collections.abc import Callable
-from contextvars import ContextVar
 from types import FunctionType
 from typing import Any, TypeVar, overload
 
@@ -16,7 +16,9 @@ from contextros.core.linking import (
     copy_function,
     fresh_key,
     link,
+    mark_base,
     passing_through,
+    proceed,
     same_parameters,
     trampoline_code,
 )
@@ -40,6 +42,8 @@ class LayeredFunction:
     def __init__(self, stub: FunctionType, base: FunctionType | None) -> None:
         self.qualname = stub.__qualname__
         self.base = base
+        if base is not None:
+            mark_base(base)
         self.partials: dict[str, FunctionType] = {}
         self._uses: dict[str, ProceedUse] = {}
         self._chains: dict[tuple[str, ...], Callable[..., Any]] = {}
@@ -47,6 +51,7 @@ class LayeredFunction:
         self._freevars = stub.__code__.co_freevars
         self._head_key = fresh_key("head")
         self._scope_key = fresh_key("scope")
+        self._runtime_key = fresh_key("runtime")
         self._self_key = fresh_key("layered")
         call_head = f"return {self._head_key}(*args, **kwargs)"
         self._direct_code = trampoline_code([call_head], self._freevars, self.qualname)
@@ -59,6 +64,8 @@ class LayeredFunction:
             [
                 f"__contextros_scope = {self._scope_key}.get()",
                 "if __contextros_scope is None:",
+                f"    if not {self._runtime_key}._live_scopes:",
+                f"        {self._runtime_key}.back_to_direct({self._self_key})",
                 f"    {call_head}",
                 f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
                 "if __contextros_head is None:",
@@ -68,9 +75,44 @@ class LayeredFunction:
             self._freevars,
             self.qualname,
         )
+        self._objects_key = fresh_key("objects")
+        self._classes_key = fresh_key("classes")
+        # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
+        self.receiver_kind = ""
+        self._receiver_code = {
+            kind: trampoline_code(
+                [
+                    "if args:",
+                    f"    __contextros_r = {self._objects_key}.get(id(args[0]))",
+                    "    if __contextros_r is None:",
+                    f"        __contextros_r = {self._classes_key}[{receiver}]",
+                    "else:",
+                    "    __contextros_r = None",
+                    f"__contextros_scope = {self._scope_key}.get()",
+                    "if __contextros_r is not None:",
+                    f"    return __contextros_r.head({self._self_key}, __contextros_scope)"
+                    "(*args, **kwargs)",
+                    "if __contextros_scope is None:",
+                    f"    {call_head}",
+                    f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
+                    "if __contextros_head is None:",
+                    f"    __contextros_head = __contextros_scope.head({self._self_key})",
+                    "return __contextros_head(*args, **kwargs)",
+                ],
+                self._freevars,
+                self.qualname,
+            )
+            for kind, receiver in (("object", "type(args[0])"), ("class", "args[0]"))
+        }
         self.stable.__wrapped__ = stub  # type: ignore[attr-defined]
         self.stable.partial = self.partial  # type: ignore[attr-defined]
+        self.stable.before = self.before  # type: ignore[attr-defined]
+        self.stable.after = self.after  # type: ignore[attr-defined]
+        self.stable.around = self.around  # type: ignore[attr-defined]
+        self.stable.remove_partial = self.remove_partial  # type: ignore[attr-defined]
         self.stable.__contextros__ = self  # type: ignore[attr-defined]
+        # A classmethod or staticmethod wrapping `stable`, when it was layered as one.
+        self.descriptor: classmethod[Any, Any, Any] | staticmethod[Any, Any] | None = None
         self.global_head: Callable[..., Any] = self._missing()
 
     def __repr__(self) -> str:
@@ -81,13 +123,19 @@ class LayeredFunction:
     def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
         """Decorator registering the partial implementation of this function for `layer`.
 
-        Returns the layered function itself, so the name stays bound to it in a class
-        body or module.
+        Returns the layered function itself (for a layered classmethod or staticmethod,
+        that descriptor), so the name stays bound to it in a class body or module. The
+        partial may itself be decorated with @classmethod / @staticmethod, to match.
         """
         target = resolve(layer)
 
         def register(function: F) -> F:
-            if not isinstance(function, FunctionType):
+            plain: object = function
+            if isinstance(plain, (classmethod, staticmethod)):
+                plain = plain.__func__
+            if isinstance(plain, property):
+                plain = plain.fget
+            if not isinstance(plain, FunctionType):
                 raise LayerDefinitionError(
                     f"partial of {self.qualname} for layer {target.name} must be a plain "
                     f"function, got {function!r}"
@@ -97,17 +145,69 @@ class LayeredFunction:
                     f"{self.qualname} already has a partial for layer {target.name} "
                     "(pass replace=True to redefine it)"
                 )
-            use = analyse(function)
-            from contextros.core.runtime import RUNTIME
-
-            with RUNTIME.lock:
-                self.partials[target.name] = function
-                self._uses[target.name] = use
-                self._chains.clear()
-                RUNTIME.recompose(self)
-            return self.stable  # type: ignore[return-value]
+            self._set_partial(target.name, plain)
+            return self.public  # type: ignore[return-value]
 
         return register
+
+    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+        """The same as `partial`: the partial runs around the rest of the chain and calls
+        `proceed(...)` where the rest should run (ContextPy3's name for it)."""
+        return self.partial(layer, replace=replace)
+
+    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+        """A partial that runs before the rest of the chain, with the same arguments; the
+        rest then runs with those arguments and its result is the call's result."""
+        register = self.partial(layer, replace=replace)
+
+        def decorate(function: F) -> F:
+            partial: Any = _before(_unwrapped(function), self.is_async)
+            return register(partial)  # type: ignore[no-any-return]
+
+        return decorate
+
+    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+        """A partial that runs after the rest of the chain: it is called as
+        ``function(result, *args, **kwargs)`` with that result and the call's arguments,
+        and what it returns is the call's result (return `result` to keep it)."""
+        register = self.partial(layer, replace=replace)
+
+        def decorate(function: F) -> F:
+            partial: Any = _after(_unwrapped(function), self.is_async)
+            return register(partial)  # type: ignore[no-any-return]
+
+        return decorate
+
+    def remove_partial(self, layer: Layer | str) -> None:
+        """Remove this function's partial for `layer` at run time; calls are rewired at
+        once (in every thread, scopes included). KeyError-free: LayerDefinitionError
+        when there is none."""
+        name = layer.name if isinstance(layer, Layer) else layer
+        if name not in self.partials:
+            raise LayerDefinitionError(f"{self.qualname} has no partial for layer {name}")
+        self._set_partial(name, None)
+
+    def _set_partial(self, name: str, function: FunctionType | None) -> None:
+        from contextros.core.runtime import RUNTIME
+
+        with RUNTIME.lock:
+            if function is None:
+                del self.partials[name]
+                del self._uses[name]
+            else:
+                self.partials[name] = function
+                self._uses[name] = analyse(function)
+            self._chains.clear()
+            RUNTIME.rewire(self)
+
+    @property
+    def is_async(self) -> bool:
+        return inspect.iscoroutinefunction(self.stable.__wrapped__)  # type: ignore[attr-defined]
+
+    @property
+    def public(self) -> object:
+        """What user code holds: the stable function, or the descriptor wrapping it."""
+        return self.descriptor if self.descriptor is not None else self.stable
 
     # -- composition ---------------------------------------------------------------------
 
@@ -144,13 +244,26 @@ class LayeredFunction:
         else:
             self.stable.__code__ = self._direct_code
 
-    def install_scoped(self, scope: ContextVar[Any]) -> None:
-        """Make calls of `stable` read the caller's scope first (while scopes are alive)."""
+    def install_scoped(self, runtime: Any) -> None:
+        """Make calls of `stable` read the caller's scope first (while scopes are alive);
+        a call that finds no scope alive at all puts the direct path back."""
         namespace = self.stable.__globals__
         namespace[self._head_key] = self.global_head
-        namespace[self._scope_key] = scope
+        namespace[self._scope_key] = runtime.scope
+        namespace[self._runtime_key] = runtime
         namespace[self._self_key] = self
         self.stable.__code__ = self._scoped_code
+
+    def install_receiver(self, runtime: Any) -> None:
+        """Make calls of `stable` look up their receiver's own layers first (per-object
+        and class-wide activation), then the caller's scope."""
+        namespace = self.stable.__globals__
+        namespace[self._head_key] = self.global_head
+        namespace[self._scope_key] = runtime.scope
+        namespace[self._objects_key] = runtime.receivers.objects
+        namespace[self._classes_key] = runtime.receivers.classes
+        namespace[self._self_key] = self
+        self.stable.__code__ = self._receiver_code[self.receiver_kind]
 
     def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname
@@ -195,10 +308,24 @@ def layered(function: F | None = None, /, *, base: bool = True) -> F | Callable[
     already layered, `layered` returns it unchanged.
     """
 
-    def make(target: F) -> F:
+    def make(target: Any) -> Any:
         existing = getattr(target, "__contextros__", None)
         if isinstance(existing, LayeredFunction):
             return target
+        if isinstance(target, (classmethod, staticmethod)):
+            owner = layered_function_of(make(target.__func__))
+            assert owner is not None
+            wrapper: Any = type(target)(owner.stable)
+            for name in ("partial", "before", "after", "around", "remove_partial"):
+                setattr(wrapper, name, getattr(owner, name))
+            wrapper.__contextros__ = owner
+            owner.descriptor = wrapper
+            return wrapper  # type: ignore[return-value]
+        if isinstance(target, property) and not isinstance(target, LayeredProperty):
+            getter = make(target.fget) if target.fget is not None else None  # type: ignore[type-var]
+            if getter is None:
+                raise LayerDefinitionError("@layered on a property needs its getter")
+            return LayeredProperty(getter, target.fset, target.fdel, target.__doc__)  # type: ignore[return-value]
         if not isinstance(target, FunctionType):
             raise LayerDefinitionError(
                 f"@layered applies to plain functions and methods, not {target!r}"
@@ -207,14 +334,114 @@ def layered(function: F | None = None, /, *, base: bool = True) -> F | Callable[
 
         owner = LayeredFunction(target, target if base else None)
         RUNTIME.adopt(owner)
-        return owner.stable  # type: ignore[return-value]
+        return owner.stable
 
     if function is not None:
-        return make(function)
+        made: F = make(function)
+        return made
     return make
 
 
 def layered_function_of(function: object) -> LayeredFunction | None:
-    """The composition state behind a layered function, or None if it is not layered."""
+    """The composition state behind a layered function, or None if it is not layered.
+
+    Accepts the function, a layered classmethod/staticmethod, or a layered property
+    (its getter's state)."""
     owner = getattr(function, "__contextros__", None)
     return owner if isinstance(owner, LayeredFunction) else None
+
+
+class LayeredProperty(property):
+    """A property whose getter is layered: ``@layered`` over ``@property``.
+
+    ``@name.partial(Layer)`` (or before/after/around) refines the getter; setter and
+    deleter are plain (``@name.setter`` keeps the getter layered).
+    """
+
+    @property
+    def __contextros__(self) -> LayeredFunction:
+        owner = layered_function_of(self.fget)
+        assert owner is not None
+        return owner
+
+    def _refine(self, kind: str, layer: Layer | str, replace: bool) -> Callable[[Any], Any]:
+        register = getattr(self.__contextros__, kind)(layer, replace=replace)
+
+        def add(function: Any) -> LayeredProperty:
+            register(function.fget if isinstance(function, property) else function)
+            return self
+
+        return add
+
+    def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
+        return self._refine("partial", layer, replace)
+
+    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
+        return self._refine("around", layer, replace)
+
+    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
+        return self._refine("before", layer, replace)
+
+    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
+        return self._refine("after", layer, replace)
+
+    def remove_partial(self, layer: Layer | str) -> None:
+        self.__contextros__.remove_partial(layer)
+
+
+def _unwrapped(function: object) -> FunctionType:
+    if isinstance(function, (classmethod, staticmethod)):
+        function = function.__func__
+    if isinstance(function, property):
+        function = function.fget
+    if not isinstance(function, FunctionType):
+        raise LayerDefinitionError(f"before/after take a plain function, got {function!r}")
+    return function
+
+
+# before/after are partials that call `proceed` by name (relinked like any other).
+
+
+def _before(function: FunctionType, is_async: bool) -> FunctionType:
+    if is_async:
+
+        async def before_async(*args: Any, **kwargs: Any) -> Any:
+            result = function(*args, **kwargs)
+            if inspect.isawaitable(result):
+                await result
+            return await proceed(*args, **kwargs)
+
+        chosen: FunctionType = before_async  # type: ignore[assignment]
+    else:
+
+        def before(*args: Any, **kwargs: Any) -> Any:
+            function(*args, **kwargs)
+            return proceed(*args, **kwargs)
+
+        chosen = before  # type: ignore[assignment]
+    return _named_like(chosen, function)
+
+
+def _after(function: FunctionType, is_async: bool) -> FunctionType:
+    if is_async:
+
+        async def after_async(*args: Any, **kwargs: Any) -> Any:
+            result = function(await proceed(*args, **kwargs), *args, **kwargs)
+            return (await result) if inspect.isawaitable(result) else result
+
+        chosen: FunctionType = after_async  # type: ignore[assignment]
+    else:
+
+        def after(*args: Any, **kwargs: Any) -> Any:
+            return function(proceed(*args, **kwargs), *args, **kwargs)
+
+        chosen = after  # type: ignore[assignment]
+    return _named_like(chosen, function)
+
+
+def _named_like(wrapper: FunctionType, function: FunctionType) -> FunctionType:
+    wrapper.__name__ = function.__name__
+    wrapper.__qualname__ = function.__qualname__
+    wrapper.__doc__ = function.__doc__
+    wrapper.__wrapped__ = function  # type: ignore[attr-defined]
+    return wrapper

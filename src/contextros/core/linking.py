@@ -5,8 +5,11 @@ Two pieces of machinery, both applied when a configuration is composed, never pe
 - *Relinking `proceed`*: a partial that calls ``proceed(...)`` by name gets a copy of
   its code in which that global name is renamed to a fresh module global bound to the
   next implementation of this chain. The call ``proceed(x)`` is then an ordinary
-  call of the next function. A partial that reaches `proceed` some other way (as an
-  attribute, through a helper) falls back to a context variable set around it.
+  call of the next function. Every linked partial gets a code object of its own, and
+  the table `_following` maps it to the next implementation, so a partial that reaches
+  `proceed` some other way (as an attribute, or from a helper function it calls) is
+  found by walking the caller's frames up to the nearest linked partial (slower, but
+  nothing is done for it per call of the partial itself).
 - *Installing the head*: the stable function object users hold (in a class or a
   module) gets the head's code assigned to its ``__code__`` when both share globals,
   closure and defaults, so a layered call is a plain call. Otherwise it runs a
@@ -16,21 +19,20 @@ Two pieces of machinery, both applied when a configuration is composed, never pe
 from __future__ import annotations
 
 import dis
-import functools
 import inspect
 import itertools
 import sys
+import weakref
 from collections.abc import Callable
-from contextvars import ContextVar
 from types import CodeType, FunctionType
 from typing import Any
 
 from contextros.errors import LayerDefinitionError, ProceedError
 
 _keys = itertools.count(1)
-_next_implementation: ContextVar[Callable[..., Any] | None] = ContextVar(
-    "contextros_next_implementation", default=None
-)
+# id(code) -> (weak reference to that code, the next implementation, or None for a base):
+# what `proceed` finds when it is not called by name in a partial's own body.
+_following: dict[int, tuple[weakref.ref[CodeType], Callable[..., Any] | None]] = {}
 
 _GLOBAL_READS = frozenset({"LOAD_GLOBAL", "LOAD_NAME"})
 _GLOBAL_WRITES = frozenset({"STORE_GLOBAL", "DELETE_GLOBAL", "STORE_NAME", "DELETE_NAME"})
@@ -42,19 +44,40 @@ def proceed(*args: Any, **kwargs: Any) -> Any:
     else the base.
 
     Call it by name inside a partial's body; the chain is bound when the configuration
-    is composed, so this costs a plain call.
+    is composed, so this costs a plain call. Called any other way (``contextros.proceed``,
+    or from a helper function the partial calls), it finds the nearest partial among its
+    callers' frames and runs that partial's next implementation.
     """
-    following = _next_implementation.get()
-    if following is None:
-        raise ProceedError(
-            "proceed() called outside a partial method: call it by name in the body of a "
-            "function registered with .partial(layer), not from the base or a plain function"
-        )
-    token = _next_implementation.set(None)
-    try:
-        return following(*args, **kwargs)
-    finally:
-        _next_implementation.reset(token)
+    frame = sys._getframe(1)
+    while frame is not None:
+        code = frame.f_code
+        entry = _following.get(id(code))
+        if entry is not None and entry[0]() is code:
+            following = entry[1]
+            if following is None:
+                break  # reached from a base implementation: nothing to proceed to
+            return following(*args, **kwargs)
+        frame = frame.f_back  # type: ignore[assignment]
+    raise ProceedError(
+        "proceed() called outside a partial method: call it in the body of a function "
+        "registered with .partial(layer), or in a helper that such a function calls; "
+        "not from a base implementation or a plain function"
+    )
+
+
+def _remember(code: CodeType, following: Callable[..., Any] | None) -> None:
+    key = id(code)
+
+    def forget(_: object, key: int = key) -> None:
+        _following.pop(key, None)
+
+    _following[key] = (weakref.ref(code, forget), following)
+
+
+def mark_base(function: FunctionType) -> None:
+    """`proceed` reached from `function` (a base implementation) is an error, even when a
+    partial further up the stack proceeded to it."""
+    _remember(function.__code__, None)
 
 
 def fresh_key(kind: str) -> str:
@@ -141,23 +164,17 @@ def copy_function(function: FunctionType, code: CodeType | None = None) -> Funct
 def link(
     partial: FunctionType, use: ProceedUse, following: Callable[..., Any]
 ) -> Callable[..., Any]:
-    """`partial` with its `proceed` bound to `following`."""
-    if not use.names:
-        return partial
-    if use.direct:
+    """`partial` with its `proceed` bound to `following`, as a function of its own."""
+    if use.names and use.direct:
         key = fresh_key("proceed")
         partial.__globals__[key] = following
-        return copy_function(partial, _renamed(partial.__code__, use.names, key))
-
-    @functools.wraps(partial)
-    def linked(*args: Any, **kwargs: Any) -> Any:
-        token = _next_implementation.set(following)
-        try:
-            return partial(*args, **kwargs)
-        finally:
-            _next_implementation.reset(token)
-
-    return linked
+        code = _renamed(partial.__code__, use.names, key)
+    else:
+        code = partial.__code__.replace()  # a code object of its own: the frame names the link
+    if code is partial.__code__:  # pragma: no cover - replace() always copies in CPython
+        code = code.replace(co_consts=(*code.co_consts, fresh_key("link")))
+    _remember(code, following)
+    return copy_function(partial, code)
 
 
 def _cells_match(a: tuple[Any, ...] | None, b: tuple[Any, ...] | None) -> bool:

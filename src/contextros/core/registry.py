@@ -25,6 +25,11 @@ def register(layer: Layer) -> None:
         _layers[layer.name] = layer
 
 
+def unregister(name: str) -> None:
+    with _lock:
+        _layers.pop(name, None)
+
+
 def lookup(name: str) -> Layer:
     """The current definition of `name`; UnknownLayerError when nobody defined it."""
     try:

@@ -22,7 +22,7 @@ from contextros.core import configuration as rules
 from contextros.core.configuration import Configuration
 from contextros.core.layer import Layer
 from contextros.core.layered import LayeredFunction
-from contextros.errors import HookError, LayerError
+from contextros.errors import HookError, LayerDefinitionError, LayerError
 
 log = logging.getLogger("contextros")
 
@@ -78,46 +78,249 @@ class SwitchResult:
 Plan = Callable[[Configuration], Configuration]
 
 
+class _Heads(dict):  # type: ignore[type-arg]
+    """The heads composed for one configuration, by layered function.
+
+    Replaced as a whole on every decisive switch, never cleared: a head computed for an
+    older configuration can only be stored in that configuration's table, so a thread
+    racing a switch never leaves a stale head where the next call would find it.
+    """
+
+    __slots__ = ("configuration",)
+
+    def __init__(self, configuration: Configuration) -> None:
+        super().__init__()
+        self.configuration = configuration
+
+
 class _Scope:
     """The scoped (de)activations of one `with activated/deactivated` block and its parents.
 
     Alive while any context (thread, task, copied context) can still see it; the
     runtime uses the live count to know whether calls must consult context variables.
-    It caches its configuration and the heads composed for it until the next decisive
-    switch.
+    `heads` holds the configuration of this scope under the current decisive one and
+    the heads composed for it; the runtime replaces it on every decisive switch.
     """
 
-    __slots__ = ("__weakref__", "_configuration", "_epoch", "_runtime", "heads", "steps")
+    __slots__ = ("__weakref__", "_runtime", "heads", "steps")
 
     def __init__(self, runtime: Runtime, steps: tuple[tuple[bool, Layer], ...]) -> None:
         self._runtime = runtime
         self.steps = steps
-        self._epoch = -1
-        self._configuration: Configuration = ()
-        # Valid for `_epoch` only: a decisive switch replaces it (see configuration()).
-        self.heads: dict[LayeredFunction, Callable[..., Any]] = {}
+        self.heads = _Heads(rules.replay(runtime.active, steps))
+
+    def refresh(self, active: Configuration) -> None:
+        self.heads = _Heads(rules.replay(active, self.steps))
 
     def configuration(self) -> Configuration:
-        if self._epoch != self._runtime.epoch:
-            self._epoch = self._runtime.epoch
-            self._configuration = rules.replay(self._runtime.active, self.steps)
-            self.heads = {}
-        return self._configuration
-
-    def invalidate(self) -> None:
-        self._epoch = -1
-        self.heads = {}
+        return self.heads.configuration
 
     def head(self, function: LayeredFunction) -> Callable[..., Any]:
-        if self._epoch != self._runtime.epoch:
-            self.configuration()
-        head = self.heads.get(function)
+        heads = self.heads  # one snapshot: configuration and table belong together
+        head = heads.get(function)
         if head is None:
-            head = self.heads[function] = function.head_for(self._configuration)
+            head = heads[function] = function.head_for(heads.configuration)
         return head
 
     def __del__(self) -> None:
         self._runtime._scope_released()
+
+
+Steps = tuple[tuple[bool, Layer], ...]
+
+
+class _Receiver:
+    """The layers of one receiver (a class, class-wide; or an object), as steps replayed
+    on the decisive configuration, and the heads composed for that."""
+
+    __slots__ = ("heads", "steps")
+
+    def __init__(self, steps: Steps, active: Configuration) -> None:
+        self.steps = steps
+        self.heads = _Heads(rules.replay(active, steps))
+
+    def head(self, function: LayeredFunction, scope: _Scope | None) -> Callable[..., Any]:
+        heads = self.heads  # one snapshot, as in _Scope.head
+        key: object = function if scope is None else (function, scope.steps)
+        head = heads.get(key)
+        if head is None:
+            configuration = heads.configuration
+            if scope is not None:
+                configuration = rules.replay(configuration, scope.steps)
+            head = heads[key] = function.head_for(configuration)
+        return head
+
+
+class _ByClass(dict):  # type: ignore[type-arg]
+    """Receiver per concrete class, computed on first use from the class-wide steps of
+    its MRO (None: no class-wide layers); emptied whenever those or the decisive
+    configuration change."""
+
+    def __init__(self, receivers: Receivers) -> None:
+        super().__init__()
+        self._receivers = receivers
+
+    def __missing__(self, cls: type) -> _Receiver | None:
+        steps = self._receivers.class_steps(cls)
+        found = _Receiver(steps, self._receivers.runtime.active) if steps else None
+        self[cls] = found
+        return found
+
+
+class Receivers:
+    """Per-object and class-wide activation.
+
+    Order of composition for a call on a receiver: the decisive configuration; then the
+    class-wide steps of its classes, from the most general base class to its own class;
+    then the object's own steps; then the caller's scoped steps (`with activated`). A
+    layered function defined in a class with such layers (or in one of its bases or
+    subclasses) takes a per-receiver path; every other function keeps its direct path.
+    """
+
+    def __init__(self, runtime: Runtime) -> None:
+        self.runtime = runtime
+        self._class_steps: dict[type, Steps] = {}
+        self._object_steps: dict[int, Steps] = {}
+        self._object_types: dict[int, type] = {}
+        self.objects: dict[int, _Receiver] = {}
+        self.classes = _ByClass(self)
+        self._functions: set[LayeredFunction] = set()
+
+    # -- queries ---------------------------------------------------------------------------
+
+    def class_steps(self, cls: type) -> Steps:
+        steps: Steps = ()
+        for klass in reversed(getattr(cls, "__mro__", ())):
+            steps += self._class_steps.get(klass, ())
+        return steps
+
+    def of(self, receiver: object) -> _Receiver | None:
+        found = self.objects.get(id(receiver))
+        if found is None:
+            found = self.classes[receiver if isinstance(receiver, type) else type(receiver)]
+        return found
+
+    def own_steps(self, target: object) -> Steps:
+        if isinstance(target, type):
+            return self._class_steps.get(target, ())
+        return self._object_steps.get(id(target), ())
+
+    # -- changes (under the runtime's lock) -------------------------------------------------
+
+    def change(self, target: object, steps: Steps, forget: tuple[Layer, ...] | None) -> None:
+        """Add `steps` to `target`'s own (a later step for a layer replaces an earlier one),
+        or with `forget` drop its steps for those layers (all when empty). Validated:
+        a RelationError leaves everything unchanged."""
+        current = self.own_steps(target)
+        if forget is not None:
+            dropped = set(forget)
+            new = tuple(step for step in current if dropped and step[1] not in dropped)
+        else:
+            named = {layer for _, layer in steps}
+            new = tuple(step for step in current if step[1] not in named) + steps
+        runtime = self.runtime
+        if isinstance(target, type):
+            merged = self.class_steps(target)
+            merged = merged[: len(merged) - len(current)] + new if current else merged + new
+            rules.validate(rules.replay(runtime.active, merged))
+            if new:
+                self._class_steps[target] = new
+            else:
+                self._class_steps.pop(target, None)
+            classes = [target, *_subclasses(target)]
+        else:
+            merged = self.class_steps(type(target)) + new
+            rules.validate(rules.replay(runtime.active, merged))
+            key = id(target)
+            if new:
+                if key not in self._object_steps:
+                    try:
+                        weakref.finalize(target, self._object_gone, key)
+                    except TypeError:
+                        raise LayerDefinitionError(
+                            f"per-object activation needs an object that supports weak "
+                            f"references; {type(target).__name__} has __slots__ without "
+                            "'__weakref__' (or is a built-in type): activate for its class"
+                        ) from None
+                self._object_steps[key] = new
+                self._object_types[key] = type(target)
+            else:
+                self._object_steps.pop(key, None)
+                self._object_types.pop(key, None)
+            classes = [type(target)]
+        self._rebuild()
+        if new:
+            self._mark(classes)
+
+    def _object_gone(self, key: int) -> None:
+        with self.runtime.lock:
+            self._object_steps.pop(key, None)
+            self._object_types.pop(key, None)
+            self.objects.pop(key, None)  # before the id can be reused
+            if not self._class_steps and not self._object_steps:
+                self._unmark()
+
+    def _rebuild(self) -> None:
+        """New tables, never cleared ones: a call racing this change can only store what
+        it computed into the old tables (as with `_Heads`); the functions are reinstalled
+        with the new ones right after (by the switch, or by `_mark`)."""
+        active = self.runtime.active
+        objects = {
+            key: _Receiver(self.class_steps(self._object_types[key]) + steps, active)
+            for key, steps in self._object_steps.items()
+        }
+        self.objects = objects
+        self.classes = _ByClass(self)
+        if not self._class_steps and not self._object_steps:
+            self._unmark()
+
+    def refresh(self, active: Configuration) -> None:
+        """After a decisive switch: every receiver's heads for the new configuration."""
+        if self._functions:
+            self._rebuild()
+
+    def forget_all(self) -> None:
+        self._class_steps.clear()
+        self._object_steps.clear()
+        self._object_types.clear()
+        self._rebuild()
+
+    def _mark(self, classes: list[type]) -> None:
+        from contextros.core.layered import layered_function_of
+
+        seen: set[type] = set()
+        for cls in classes:
+            for klass in getattr(cls, "__mro__", (cls,)):
+                if klass in seen or klass is object:
+                    continue
+                seen.add(klass)
+                for value in vars(klass).values():
+                    if isinstance(value, staticmethod):
+                        continue  # no receiver: decisive and scoped layers only
+                    owner = layered_function_of(value)
+                    if owner is None:
+                        continue
+                    owner.receiver_kind = "class" if isinstance(value, classmethod) else "object"
+                    self._functions.add(owner)
+        for function in self._functions:
+            self.runtime.recompose(function)
+
+    def _unmark(self) -> None:
+        functions, self._functions = self._functions, set()
+        for function in functions:
+            function.receiver_kind = ""
+            self.runtime.recompose(function)
+
+
+def _subclasses(cls: type) -> list[type]:
+    found: list[type] = []
+    pending: list[type] = list(type.__subclasses__(cls)) if isinstance(cls, type) else []
+    while pending:
+        sub = pending.pop()
+        if sub not in found:
+            found.append(sub)
+            pending.extend(type.__subclasses__(sub))
+    return found
 
 
 class Runtime:
@@ -132,6 +335,7 @@ class Runtime:
         self._live_scopes = 0
         self._scopes: weakref.WeakSet[_Scope] = weakref.WeakSet()
         self.scope: ContextVar[_Scope | None] = ContextVar("contextros_scope", default=None)
+        self.receivers = Receivers(self)
 
     # -- layered functions ---------------------------------------------------------------
 
@@ -143,10 +347,50 @@ class Runtime:
     def recompose(self, function: LayeredFunction) -> None:
         with self.lock:
             function.global_head = function.head_for(self.active)
-            if self._live_scopes:
-                function.install_scoped(self.scope)
-            else:
-                function.install(function.global_head)
+            self._install(function)
+
+    def _install(self, function: LayeredFunction) -> None:
+        """The path calls of `function` take: per receiver (a class or an object of its
+        class has layers of its own), scope-reading (a `with` block is alive somewhere),
+        or direct (the head's own code, or a one-call trampoline)."""
+        if function.receiver_kind:
+            function.install_receiver(self)
+        elif self._live_scopes:
+            function.install_scoped(self)
+        else:
+            function.install(function.global_head)
+
+    def rewire(self, function: LayeredFunction) -> None:
+        """`function`'s partials changed: recompose it, and give every live scope fresh
+        heads (theirs were composed from the old partials)."""
+        with self.lock:
+            self.recompose(function)
+            for scope in list(self._scopes):
+                scope.refresh(self.active)
+
+    def remove_layer(self, layer: Layer) -> tuple[str, ...]:
+        """Deactivate `layer` (if decisively active), drop its partials from every layered
+        function and forget its definition. Returns the qualnames of the functions it
+        refined. A RelationError from the deactivation leaves everything as it was."""
+        from contextros.core import registry
+
+        with self.lock:
+            if layer in self.active:
+                if self._critical_depth:
+                    raise LayerDefinitionError(
+                        f"cannot remove layer {layer.name} while it is active and a critical "
+                        "section is open (its deactivation would be deferred)"
+                    )
+                remaining = tuple(other for other in self.active if other != layer)
+                rules.validate(remaining)
+                self._apply(remaining)
+            refined = []
+            for function in list(self._functions):
+                if layer.name in function.partials:
+                    function.remove_partial(layer.name)
+                    refined.append(function.qualname)
+            registry.unregister(layer.name)
+            return tuple(sorted(refined))
 
     def _reinstall_all(self) -> None:
         for function in list(self._functions):
@@ -181,14 +425,12 @@ class Runtime:
         heads = {function: function.head_for(new) for function in list(self._functions)}
         self.active = new
         self.epoch += 1
+        self.receivers.refresh(new)  # new receiver tables, installed just below
         for function, head in heads.items():
             function.global_head = head
-            if self._live_scopes:
-                function.install_scoped(self.scope)
-            else:
-                function.install(head)
+            self._install(function)
         for scope in list(self._scopes):
-            scope.invalidate()
+            scope.refresh(new)
         failure: HookError | None = None
         for layer in arriving:
             try:
@@ -262,6 +504,10 @@ class Runtime:
             return scope
 
     def _scope_released(self) -> None:
+        # Runs from __del__, wherever the last reference went (a finished task, another
+        # thread): it only counts. A function left on the scope-reading path goes back to
+        # the direct one at its next call with no scope (see `back_to_direct`) or here, in
+        # `leave_scope`, at the end of a block.
         with self.lock:
             self._live_scopes -= 1
 
@@ -269,6 +515,16 @@ class Runtime:
         with self.lock:
             if not self._live_scopes:
                 self._reinstall_all()
+
+    def back_to_direct(self, function: LayeredFunction) -> None:
+        """Called by `function`'s scope-reading path when it ran with no scope alive."""
+        with self.lock:
+            if not self._live_scopes:
+                self.recompose(function)
+
+    @property
+    def live_scopes(self) -> int:
+        return self._live_scopes
 
     def reset(self) -> None:
         """Back to no active layers, no observers and no pending switches (for tests).
@@ -284,11 +540,19 @@ class Runtime:
             self.active = ()
             self.epoch += 1
             for scope in list(self._scopes):
-                scope.invalidate()
+                scope.refresh(())
+            self.receivers.forget_all()
             self._reinstall_all()
 
-    def effective(self) -> Configuration:
+    def effective(self, receiver: object = None) -> Configuration:
+        """The configuration a call sees: decisive, then the receiver's class-wide and own
+        layers (when given), then the caller's scope."""
         scope = self.scope.get()
+        if receiver is not None:
+            found = self.receivers.of(receiver)
+            if found is not None:
+                base = found.heads.configuration
+                return base if scope is None else rules.replay(base, scope.steps)
         return self.active if scope is None else scope.configuration()
 
 

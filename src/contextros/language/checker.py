@@ -9,8 +9,7 @@ activate.
 
 from __future__ import annotations
 
-import ast
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from itertools import combinations
 from pathlib import Path
 
@@ -20,7 +19,7 @@ from contextros.language.diagnostics import (
     LayerSyntaxError,
     sorted_diagnostics,
 )
-from contextros.language.parser import parse_with_diagnostics
+from contextros.language.flavours import parse_with_diagnostics
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Ref
 
 # Names the compiled module defines besides the generated functions and the layers.
@@ -29,13 +28,18 @@ RESERVED_NAMES = frozenset({"proceed"})
 DESCRIPTORS = frozenset({"staticmethod", "classmethod", "property"})
 
 
-def check_source(source: str, path: str = "<layers>") -> list[Diagnostic]:
-    """Every diagnostic of a layer file, sorted by position. Never raises them."""
-    layer_file, found = parse_with_diagnostics(source, path)
+def check_source(
+    source: str, path: str = "<layers>", language: str | None = None
+) -> list[Diagnostic]:
+    """Every diagnostic of a layer file, sorted by position. Never raises them.
+
+    `language` ("python" or "cpp") overrides the flavour the file name implies.
+    """
+    layer_file, found = parse_with_diagnostics(source, path, language)
     return sorted_diagnostics([*found, *check(layer_file)])
 
 
-def check_file(path: str | Path) -> list[Diagnostic]:
+def check_file(path: str | Path, language: str | None = None) -> list[Diagnostic]:
     """`check_source` for a file on disk (an unreadable file is an error at 1:1)."""
     try:
         source = Path(path).read_text(encoding="utf-8")
@@ -43,12 +47,14 @@ def check_file(path: str | Path) -> list[Diagnostic]:
         sink = DiagnosticSink(str(path), "")
         sink.error(f"cannot read the layer file: {error}", 1, 1)
         return sink.items
-    return check_source(source, str(path))
+    return check_source(source, str(path), language)
 
 
-def checked(source: str, path: str = "<layers>") -> tuple[LayerFile, list[Diagnostic]]:
+def checked(
+    source: str, path: str = "<layers>", language: str | None = None
+) -> tuple[LayerFile, list[Diagnostic]]:
     """Parse and check; raise `LayerSyntaxError` on errors, else return the tree and warnings."""
-    layer_file, found = parse_with_diagnostics(source, path)
+    layer_file, found = parse_with_diagnostics(source, path, language)
     diagnostics = sorted_diagnostics([*found, *check(layer_file)])
     errors = [d for d in diagnostics if d.is_error]
     if errors:
@@ -61,60 +67,37 @@ def check(layer_file: LayerFile) -> list[Diagnostic]:
     return _Checker(layer_file).run()
 
 
-def header_names(module: ast.Module | None) -> tuple[set[str], bool]:
-    """Names the header binds at module level, and whether a `*` import hides some."""
-    names: set[str] = set()
-    star = False
-    pending: list[ast.stmt] = list(module.body) if module is not None else []
-    while pending:
-        stmt = pending.pop()
-        if isinstance(stmt, (ast.Import, ast.ImportFrom)):
-            for alias in stmt.names:
-                if alias.name == "*":
-                    star = True
-                else:
-                    names.add(alias.asname or alias.name.split(".")[0])
-        elif isinstance(stmt, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
-            names.add(stmt.name)
-        elif isinstance(stmt, (ast.If, ast.Try, ast.With, ast.For, ast.While)):
-            for attr in ("body", "orelse", "finalbody", "handlers"):
-                pending.extend(getattr(stmt, attr, []))
-        elif isinstance(stmt, ast.ExceptHandler):
-            pending.extend(stmt.body)
-        if isinstance(stmt, (ast.Assign, ast.AnnAssign, ast.AugAssign, ast.For, ast.With)):
-            for node in ast.walk(stmt):
-                if isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
-                    names.add(node.id)
-    return names, star
-
-
-def signature_shape(function: Function) -> tuple[object, ...]:
-    """What callers rely on: parameter kinds, names and which ones have defaults."""
-    args = function.node.args
-    positional = [*args.posonlyargs, *args.args]
-    with_default = len(positional) - len(args.defaults)
-    return (
-        tuple(a.arg for a in args.posonlyargs),
-        tuple((a.arg, i >= with_default) for i, a in enumerate(positional)),
-        args.vararg is not None,
-        tuple(
-            (a.arg, d is not None) for a, d in zip(args.kwonlyargs, args.kw_defaults, strict=True)
-        ),
-        args.kwarg is not None,
-    )
-
-
-def signature_text(function: Function) -> str:
-    args = ast.unparse(function.node.args)
-    prefix = "async " if function.is_async else ""
-    return f"{prefix}{function.key}({args})"
-
-
-def calls_proceed(function: Function) -> bool:
-    return any(
-        isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "proceed"
-        for node in ast.walk(function.node)
-    )
+def check_activation_order(
+    layer_file: LayerFile, activation: Sequence[str], where: str = "activation order"
+) -> list[Diagnostic]:
+    """Warnings where `activation` (layers in the order they would be activated, the last
+    outermost) contradicts the file's `after` declarations: the Layer manager composes in the
+    declared order instead, so the requested order would not be the one that runs."""
+    checker = _Checker(layer_file)
+    checker._declarations()
+    after = {name: checker._closure(name, "after") for name in checker.layers}
+    order = list(dict.fromkeys(activation))
+    for index, earlier in enumerate(order):
+        for later in order[index + 1 :]:
+            if later not in after.get(earlier, set()):
+                continue
+            # `earlier` is declared after `later`, yet requested before it.
+            layer = checker.layers[earlier]
+            ref = next((r for r in layer.after if r.name == later), None)
+            at = ref.at if ref is not None else layer.at
+            declared = (
+                f"'layer {earlier} after {later}' is declared here"
+                if ref is not None
+                else f"{earlier} comes after {later} through the 'after' declarations from here"
+            )
+            checker.sink.warning(
+                f"{where} {', '.join(order)} activates {earlier} before {later}, but "
+                f"{declared}: the Layer manager "
+                f"composes {later} first and {earlier} outermost; list {later} first",
+                at.line,
+                at.col,
+            )
+    return checker.sink.items
 
 
 class _Checker:
@@ -133,7 +116,36 @@ class _Checker:
         self._functions()
         self._names()
         self._interaction()
+        self._rules()
         return self.sink.items
+
+    # -- context rules (language-neutral) ------------------------------------------------
+
+    def _rules(self) -> None:
+        if not self.file.rules:
+            return
+        from contextros.rules.ruleset import RuleSet
+
+        for rule in self.file.rules:
+            for ref in (rule.layer, rule.otherwise):
+                if ref is not None and self.layers and ref.name not in self.layers:
+                    self.sink.warning(
+                        f"rule {rule.name} switches layer {ref.name!r}, which this file does "
+                        "not declare: the Layer manager refuses it unless a node implements it",
+                        ref.at.line,
+                        ref.at.col,
+                    )
+        relations = {
+            name: (
+                frozenset({self.group_of[name]}) if name in self.group_of else frozenset(),
+                frozenset(
+                    other for pair in self.excluded if name in pair for other in pair - {name}
+                ),
+            )
+            for name in self.layers
+        }
+        rules = RuleSet(self.file.rules, {self.file.path: self.file.source})
+        self.sink.items += rules.check(relations)
 
     # -- declarations and relations ---------------------------------------------------
 
@@ -238,7 +250,7 @@ class _Checker:
     # -- functions ----------------------------------------------------------------------
 
     def _functions(self) -> None:
-        names, star = header_names(self.file.header_node)
+        names, star = set(self.file.header_names), self.file.header_opaque
         first_impl: dict[str, Function] = {}
         for block_name, functions in self._function_blocks():
             seen: dict[str, Function] = {}
@@ -259,7 +271,7 @@ class _Checker:
                 if first is not function:
                     self._compatible(first, function)
                 self._proceed_arguments(function)
-                if function.layer is None and calls_proceed(function):
+                if function.layer is None and function.proceed_calls:
                     self.sink.warning(
                         f"proceed() in the base implementation of {function.key} has no next "
                         "implementation to run: it raises at run time",
@@ -283,13 +295,13 @@ class _Checker:
             return
         if function.owner not in names and not star:
             self.sink.error(
-                f"class {function.owner!r} is not defined in the header: import it or define "
+                f"class {function.owner!r} is not defined in the header: "
+                f"{'include' if self.file.language == 'cpp' else 'import'} it or define "
                 "it above the first declaration",
                 function.at.line,
                 function.at.col,
             )
-        args = function.node.args
-        if not (args.posonlyargs or args.args or args.vararg):
+        if not function.takes_instance:
             self.sink.error(
                 f"method {function.key} takes no parameters: it needs one for the instance (self)",
                 function.at.line,
@@ -297,44 +309,25 @@ class _Checker:
             )
 
     def _proceed_arguments(self, function: Function) -> None:
-        """`proceed` takes the method's own arguments, the instance first."""
-        if function.owner is None or function.layer is None:
+        """`proceed` takes the method's own arguments, the instance first (Python)."""
+        if function.owner is None or function.layer is None or not function.takes_instance:
             return
-        args = function.node.args
-        first = (args.posonlyargs + args.args)[:1]
-        if not first:
-            return
-        for node in ast.walk(function.node):
-            if not (
-                isinstance(node, ast.Call)
-                and isinstance(node.func, ast.Name)
-                and node.func.id == "proceed"
-            ):
+        for call in function.proceed_calls:
+            if call.passes_instance:
                 continue
-            if node.args and isinstance(node.args[0], ast.Starred):
-                continue
-            if node.args and isinstance(node.args[0], ast.Name) and node.args[0].id == first[0].arg:
-                continue
-            line, col = self._position_of(function, node)
             self.sink.warning(
                 f"proceed() in {function.key} does not pass the instance first: the next "
                 f"implementation is called with the method's arguments, as "
-                f"proceed({first[0].arg}, ...)",
-                line,
-                col,
+                f"proceed({function.instance_name}, ...)",
+                call.at.line,
+                call.at.col,
             )
 
-    def _position_of(self, function: Function, node: ast.expr) -> tuple[int, int]:
-        """Where a node of a function's parsed text is in the layer file."""
-        index = min(max(node.lineno, 1), len(function.lines)) - 1
-        line = function.lines[index]
-        return line.line, line.column(node.col_offset) + 1
-
     def _decorators(self, function: Function) -> None:
-        for decorator in function.node.decorator_list:
-            if isinstance(decorator, ast.Name) and decorator.id in DESCRIPTORS:
+        for decorator in function.decorators:
+            if decorator in DESCRIPTORS:
                 self.sink.error(
-                    f"@{decorator.id} makes {function.key} a {decorator.id} object; layered "
+                    f"@{decorator} makes {function.key} a {decorator} object; layered "
                     "implementations must stay plain functions",
                     function.at.line,
                     function.at.col,
@@ -344,23 +337,23 @@ class _Checker:
         where = f"layer {first.layer}" if first.layer else "the base block"
         if first.is_async != other.is_async:
             self.sink.error(
-                f"{signature_text(other)} is {'' if other.is_async else 'not '}async, but "
+                f"{other.signature.text} is {'' if other.is_async else 'not '}async, but "
                 f"{first.key} in {where} (line {first.at.line}) is "
                 f"{'' if first.is_async else 'not '}async",
                 other.at.line,
                 other.at.col,
             )
-        elif signature_shape(first) != signature_shape(other):
+        elif first.signature.shape != other.signature.shape:
             self.sink.error(
-                f"incompatible signature: {signature_text(other)} does not match "
-                f"{signature_text(first)} in {where} (line {first.at.line})",
+                f"incompatible signature: {other.signature.text} does not match "
+                f"{first.signature.text} in {where} (line {first.at.line})",
                 other.at.line,
                 other.at.col,
             )
 
     def _names(self) -> None:
         """Names the compiled module defines must not collide with each other or the header."""
-        header, _ = header_names(self.file.header_node)
+        header = self.file.header_names
         taken = dict.fromkeys(header, "a name defined in the header")
         for name in RESERVED_NAMES:
             taken.setdefault(name, "a name the compiled module imports")
@@ -431,6 +424,7 @@ class _Checker:
         for layer in self.layers.values():
             for function in layer.functions:
                 by_method.setdefault(function.key, []).append(function)
+        keyword = "Layer" if self.file.language == "cpp" else "layer"
         for key, functions in by_method.items():
             for first, second in combinations(functions, 2):
                 a, b = first.layer or "", second.layer or ""
@@ -443,8 +437,8 @@ class _Checker:
                 self.sink.warning(
                     f"{key} is refined by layers {a!r} (line {first.at.line}) and {b!r}, which "
                     "may be active together with no declared order, so the result depends on "
-                    f"which was activated last; declare 'layer {b} after {a}' (or the reverse), "
-                    "or make them exclusive ('excludes', 'group')",
+                    f"which was activated last; declare '{keyword} {b} after {a}' (or the "
+                    "reverse), or make them exclusive ('excludes', 'group')",
                     second.at.line,
                     second.at.col,
                 )

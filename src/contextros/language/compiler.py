@@ -16,13 +16,14 @@ from __future__ import annotations
 import ast
 import copy
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import CodeType
 
 from contextros.language.checker import checked
 from contextros.language.diagnostics import Diagnostic, source_lines
+from contextros.language.python_syntax import PythonFunction
 from contextros.language.syntax import Function, Hook, LayerDecl, LayerFile, Ref, SourceLine
 
 # Bumped whenever the generated code changes shape: it invalidates the loader's cache.
@@ -62,8 +63,11 @@ class CompiledLayers:
 
 
 def compile_source(source: str, path: str = "<layers>") -> CompiledLayers:
-    """Check and translate a layer file; raise `LayerSyntaxError` if it has errors."""
-    layer_file, diagnostics = checked(source, path)
+    """Check and translate a Python layer file; raise `LayerSyntaxError` if it has errors.
+
+    (C++ layer files: `contextros.language.cpp.generator.compile_cpp`.)
+    """
+    layer_file, diagnostics = checked(source, path, "python")
     emitter = _Emitter(layer_file)
     emitter.module()
     return CompiledLayers(
@@ -174,7 +178,7 @@ class _Emitter:
             )
         self.blank(line)
 
-    def source(self, lines: list[SourceLine], comment: str, decorator: str = "") -> None:
+    def source(self, lines: Sequence[SourceLine], comment: str, decorator: str = "") -> None:
         self.glue(f"# {self.name}:{lines[0].line} ({comment})", lines[0].line)
         if decorator:
             self.glue(decorator, lines[0].line)
@@ -200,7 +204,7 @@ class _Emitter:
             arguments.append(f"description={_literal(layer.description)}")
         if group is not None:
             arguments.append(f"group={_literal(group)}")
-        for relation in ("excludes", "requires"):
+        for relation in ("excludes", "requires", "after"):
             names = _unique(ref.name for ref in getattr(layer, relation))
             if names:
                 arguments.append(f"{relation}={_names_tuple(names)}")
@@ -217,7 +221,8 @@ class _Emitter:
 
     # -- methods ------------------------------------------------------------------------
 
-    def method(self, key: str, functions: list[Function]) -> None:
+    def method(self, key: str, implementations: list[Function]) -> None:
+        functions = [_python(f) for f in implementations]
         base = next((f for f in functions if f.layer is None), None)
         partials = [f for f in functions if f.layer is not None]
         first = functions[0]
@@ -256,8 +261,9 @@ class _Emitter:
                 f"{dispatch}.partial({partial.layer})({partial.generated_name})", partial.at.line
             )
 
-    def stub(self, first: Function) -> None:
+    def stub(self, first: PythonFunction) -> None:
         """The dispatch function of a method without base: a signature and a docstring."""
+        assert first.node is not None
         stub = copy.copy(first.node)
         stub.name = first.name
         stub.decorator_list = []
@@ -284,6 +290,12 @@ class _Emitter:
         self.glue(f"__layers__ = ({names}{',' if len(self.file.layers) == 1 else ''})", line)
         pairs = [_names_tuple(pair) for pair in order]
         self.glue(f"__layer_order__ = ({', '.join(pairs)}{',' if len(pairs) == 1 else ''})", line)
+
+
+def _python(function: Function) -> PythonFunction:
+    if not isinstance(function, PythonFunction):
+        raise TypeError(f"the Python back end got a {type(function).__name__}")
+    return function
 
 
 def _literal(value: str) -> str:

@@ -40,14 +40,20 @@ class Diagnostic:
     def render(self) -> str:
         """`file:line:col: error: message`, then the line and a caret under the fault."""
         head = f"{self.path}:{self.line}:{self.col}: {self.severity.value}: {self.message}"
-        if not self.source_line.strip():
-            return head
-        text = self.source_line.rstrip("\r\n").expandtabs(1)
+        text = printable(self.source_line)  # quoted even when blank: the caret still says where
         caret = " " * max(0, min(self.col - 1, len(text))) + "^"
         return f"{head}\n    {text}\n    {caret}"
 
     def sort_key(self) -> tuple[str, int, int, int, str]:
         return (self.path, self.line, self.col, 0 if self.is_error else 1, self.message)
+
+
+def printable(source_line: str) -> str:
+    """A source line as quoted under a diagnostic: one character per column (a tab is one
+    space, as Python counts columns), and no character that would break the quote's line
+    or the caret's alignment (form feeds, line separators: shown as '?')."""
+    text = source_line.rstrip("\r\n").expandtabs(1)
+    return "".join(c if c.isprintable() else "?" for c in text)
 
 
 class LayerLanguageError(LayerError):
@@ -127,7 +133,8 @@ class DiagnosticSink:
         return self.lines[line - 1] if 1 <= line <= len(self.lines) else ""
 
     def add(self, severity: Severity, message: str, line: int, col: int) -> None:
-        line = max(1, line)
+        # Python reports an unexpected end of file on the line after the last one.
+        line = max(1, min(line, len(self.lines) or 1))
         col = max(1, col)
         self.items.append(Diagnostic(severity, message, self.path, line, col, self.quote(line)))
 

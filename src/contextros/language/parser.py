@@ -24,9 +24,10 @@ from contextros.language.diagnostics import (
     LayerSyntaxError,
     source_lines,
 )
+from contextros.language.lines import parse_line_declaration
+from contextros.language.python_syntax import PythonFunction, header_names, python_function
 from contextros.language.syntax import (
     BaseBlock,
-    Function,
     GroupDecl,
     Hook,
     LayerDecl,
@@ -44,10 +45,13 @@ HOOK_EVENTS = ("activate", "deactivate")
 
 _NAME = r"[^\W\d]\w*"
 # A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`).
-_DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
+_DECLARATION_START = re.compile(
+    rf"(?:(layer|group|rule|parameter|lifecycle)[ \t]+({_NAME})|(base)[ \t]*:)"
+)
 # Keywords that may follow a name in a Python expression statement.
 _OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
-_DECLARATION_WORD = re.compile(r"(layer|base|group)\b")
+_DECLARATION_WORD = re.compile(r"(layer|base|group|rule|parameter|lifecycle)\b")
+_BASE_LINE = re.compile(r"base[ \t]*:[ \t]*(?:#.*)?$")
 _DEF = re.compile(
     rf"(?P<indent>[ \t]*)(?:async[ \t]+)?def[ \t]+"
     rf"(?P<target>(?:(?P<owner>{_NAME})[ \t]*\.[ \t]*)?(?P<name>{_NAME}))"
@@ -122,6 +126,20 @@ def _starts_declaration(text: str) -> bool:
     return match is not None and match.group(2) not in _OPERATOR_WORDS
 
 
+def _indented_declaration(text: str) -> bool:
+    """An indented line that can only be a declaration (`layer X`, `group g`, a lone
+    `base:`): never Python, so it ends the block above it instead of joining it."""
+    if not text or text[0] not in " \t":
+        return False
+    stripped = text.lstrip(" \t")
+    if _BASE_LINE.match(stripped):
+        return True
+    match = _DECLARATION_START.match(stripped)
+    if match is None or match.group(1) is None:
+        return False
+    return match.group(2) not in _OPERATOR_WORDS
+
+
 def _lines_inside_strings(lines: list[str]) -> set[int]:
     """0-based indices of lines that begin inside a multi-line string: never re-indent them."""
     inside: set[int] = set()
@@ -148,19 +166,36 @@ class _Parser:
     def run(self) -> tuple[LayerFile, list[Diagnostic]]:
         start = self._header_end()
         header = "\n".join(self.lines[:start])
-        header_node = self._parse_header(header)
+        names, star = header_names(self._parse_header(header))
         result = LayerFile(
             path=self.path,
             source=self.source,
             header=header,
             header_lines=start,
-            header_node=header_node,
+            language="python",
+            header_names=frozenset(names),
+            header_opaque=star,
         )
         i = start
         while i < len(self.lines):
             text = self.lines[i]
             if _is_blank(text):
                 i += 1
+                continue
+            if _indented_declaration(text):
+                # One mistake, one error: say it, then read the declaration as meant.
+                word = text.lstrip(" \t").split()[0].rstrip(":")
+                self.sink.error(
+                    f"unexpected indentation: '{word}' must start at the beginning of the "
+                    "line (declarations are not indented)",
+                    i + 1,
+                    1,
+                )
+                end = self._block_end(i)
+                self.lines[i] = text.lstrip(" \t")
+                self._declaration(i, end, result)
+                self.lines[i] = text
+                i = end
                 continue
             if text[0] in " \t":
                 self.sink.error(
@@ -183,6 +218,8 @@ class _Parser:
             # are an error of the header, reported as such.
             if _starts_declaration(text) and _open_in(self.lines[:i]) != "string":
                 return i
+            if _indented_declaration(text) and not _open_in(self.lines[:i]):
+                return i  # misplaced, reported as such by run()
         return len(self.lines)
 
     def _parse_header(self, header: str) -> ast.Module | None:
@@ -194,6 +231,8 @@ class _Parser:
         j = start + 1
         while j < len(self.lines):
             text = self.lines[j]
+            if _indented_declaration(text) and not _open_in(self.lines[start + 1 : j]):
+                break
             if not text.strip() or text[0] in " \t#":
                 j += 1
                 continue
@@ -241,15 +280,21 @@ class _Parser:
                 1,
             )
             return
+        if word.group() in ("rule", "parameter", "lifecycle"):
+            self._line_declaration(start, end, result)
+            return
         tokens = self._tokens(start, stop_at_colon=word.group() != "group")
         if tokens is None:
             return
         first = tokens[0] if tokens else None
         if first is not None and first.text == "layer":
+            known_errors = len(self.sink.items)
             layer = self._layer_line(start, tokens)
             if layer is not None:
                 result.layers.append(layer)
-                self._block(start, end, layer, None)
+                # An empty block after a broken line is that line's mistake, not another.
+                line_ok = len(self.sink.items) == known_errors
+                self._block(start, end, layer, None, report_empty=line_ok)
             return
         if first is not None and first.text == "base":
             if len(tokens) < 2 or tokens[1].text != ":" or len(tokens) > 2:
@@ -313,35 +358,48 @@ class _Parser:
         name = self._expect_name(row, tokens, 1, "a layer name after 'layer'")
         if name is None:
             return None
+        # From here on the layer is declared even when the rest of its line is wrong, so
+        # that the file's other mentions of it are not reported as follow-on errors.
         layer = LayerDecl(name.name, name.at)
         i = 2
         while i < len(tokens) and tokens[i].text in RELATIONS:
             relation = tokens[i].text
             refs, i = self._name_list(row, tokens, i + 1, f"a layer name after {relation!r}")
-            if i < 0:
-                return None
             getattr(layer, relation).extend(refs)
+            if i < 0:
+                return layer
         end_col = len(self.lines[row].split("#")[0].rstrip())
         if i >= len(tokens):
             self.sink.error(
                 "expected ':' at the end of the layer declaration", row + 1, end_col + 1
             )
-            return None
-        if tokens[i].text != ":":
+        elif tokens[i].text != ":":
             self.sink.error(
                 f"expected 'excludes', 'requires', 'after' or ':', found {tokens[i].text!r}",
                 row + 1,
                 tokens[i].col + 1,
             )
-            return None
-        if i + 1 < len(tokens):
+        elif i + 1 < len(tokens):
             self.sink.error(
                 "a layer's methods start on the next line, indented",
                 row + 1,
                 tokens[i + 1].col + 1,
             )
-            return None
         return layer
+
+    def _line_declaration(self, start: int, end: int, result: LayerFile) -> None:
+        """`rule NAME: ...`, `parameter LAYER: ...`, `lifecycle LAYER: ...` on one line; a
+        language-neutral grammar shared with the C++ flavour (contextros.language.lines)."""
+        text = self.lines[start]
+        word = text.split()[0] if text.split() else "rule"
+        parse_line_declaration(text, start + 1, result, self.sink)
+        if end > start + 1:
+            row = next(r for r in range(start + 1, end) if not _is_blank(self.lines[r]))
+            self.sink.error(
+                f"unexpected indentation: a {word} is declared on one line",
+                row + 1,
+                _indent_width(self.lines[row]) + 1,
+            )
 
     def _group_line(self, row: int, tokens: list[_Token]) -> GroupDecl | None:
         name = self._expect_name(row, tokens, 1, "a group name after 'group'")
@@ -353,7 +411,7 @@ class _Parser:
             return None
         members, i = self._name_list(row, tokens, 3, "a layer name in the group")
         if i < 0:
-            return None
+            return GroupDecl(name.name, name.at, members)
         if i < len(tokens):
             self.sink.error(
                 f"expected ',' between group members, found {tokens[i].text!r}",
@@ -392,7 +450,15 @@ class _Parser:
             decorators_only = self.lines[row].lstrip().startswith("@")
         yield item_start, end
 
-    def _block(self, start: int, end: int, layer: LayerDecl | None, base: BaseBlock | None) -> None:
+    def _block(
+        self,
+        start: int,
+        end: int,
+        layer: LayerDecl | None,
+        base: BaseBlock | None,
+        *,
+        report_empty: bool = True,
+    ) -> None:
         owner = f"layer {layer.name}" if layer is not None else "the base block"
         first_item = True
         found_any = False
@@ -429,7 +495,7 @@ class _Parser:
                     col,
                 )
             first_item = False
-        if not found_any:
+        if not found_any and report_empty:
             text = self.lines[start].split("#")[0].rstrip()
             self.sink.error(
                 f"{owner} is empty: expected indented methods below it", start + 1, len(text) + 1
@@ -460,7 +526,7 @@ class _Parser:
             text, line.line, line.delta, split, old_width - len(new.encode()) + line.delta
         )
 
-    def _function(self, first: int, end: int, layer: LayerDecl | None) -> Function | None:
+    def _function(self, first: int, end: int, layer: LayerDecl | None) -> PythonFunction | None:
         lines = self._dedent(first, end)
         def_index = next(
             (k for k, ln in enumerate(lines) if not ln.text.lstrip().startswith(("@", "#"))),
@@ -493,7 +559,7 @@ class _Parser:
         ):
             self.sink.error("expected a single method definition", at.line, at.col)
             return None
-        return Function(
+        return python_function(
             name=name,
             owner=owner,
             layer=layer.name if layer is not None else None,
@@ -563,7 +629,7 @@ class _Parser:
             try:
                 node = ast.parse(text, filename="<layer piece>")  # not the real file: see below
             except SyntaxError as error:
-                row, col = where(error.lineno or fallback_line, max((error.offset or 1) - 1, 0))
+                row, col = where(error.lineno or fallback_line, _error_column(error, text))
                 self.sink.error(f"Python syntax error: {error.msg}", row, col + 1)
                 return None
             except (ValueError, RecursionError, MemoryError) as error:
@@ -585,3 +651,15 @@ class _Parser:
                 row, col = where(warning.lineno or fallback_line, 0)
                 self.sink.warning(f"Python: {warning.message}", row, col + 1)
         return node
+
+
+def _error_column(error: SyntaxError, text: str) -> int:
+    """0-based column of a Python syntax error in `text`: for an indentation error, where
+    the line's code starts (Python points past the line's end for an unindent)."""
+    if isinstance(error, IndentationError) and error.lineno:
+        lines = text.split("\n")
+        if 1 <= error.lineno <= len(lines):
+            line = lines[error.lineno - 1]
+            if line.strip():
+                return _indent_width(line)
+    return max((error.offset or 1) - 1, 0)

@@ -1,13 +1,22 @@
-"""The syntax tree of a `.layers` file: what the parser produces and the checker reads.
+"""The syntax tree of a layer file: what a flavour's parser produces and the checker reads.
 
 Describe, then execute: these are inert values. Lines and columns are 1-based and refer
-to the `.layers` file, so every diagnostic and every traceback can point there.
+to the layer file, so every diagnostic and every traceback can point there.
+
+The tree is language-neutral: layers, groups, relations and, for each implementation of a
+method, its name, owner class, signature (as data the checker compares) and its calls of
+`proceed`. Each flavour (Python: parser.py, C++: cpp/parser.py) subclasses `Function` with
+what its back end needs (Python's `ast` nodes, the C++ text spans).
 """
 
 from __future__ import annotations
 
-import ast
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from contextros.language.bindings import LifecycleBinding, ParameterBinding
+    from contextros.language.rules import RuleDecl
 
 
 @dataclass(frozen=True)
@@ -44,21 +53,49 @@ class SourceLine:
         return col + self.delta
 
 
+@dataclass(frozen=True)
+class Signature:
+    """What callers of a method rely on, as the checker compares it between implementations.
+
+    `shape` is compared for equality (its content is the flavour's business: parameter kinds
+    and names in Python, parameter types and qualifiers in C++); `text` shows it in messages.
+    """
+
+    shape: tuple[object, ...]
+    text: str
+    is_async: bool = False
+
+
+@dataclass(frozen=True)
+class ProceedCall:
+    """A call of `proceed` in an implementation; whether it passes the instance first.
+
+    (Python methods pass `self` explicitly; a C++ method's `proceed` knows its object.)
+    """
+
+    at: Position
+    passes_instance: bool = True
+
+
 @dataclass
 class Function:
-    """A method implementation: in a layer (a partial) or in the `base:` block.
+    """A method implementation: in a layer (a partial) or in the base block.
 
-    `owner` is the class name for `def Class.name(...)`, None for a free function.
-    `lines` is the dedented Python text with the `def` renamed to `generated_name`.
+    `owner` is the class name for a method (`Cleaner.clean`, `Robot::getPos`), None for a
+    free function. `takes_instance` says whether it has a way to reach its object (a
+    Python method needs a first parameter; a C++ method always has `this`).
     """
 
     name: str
     owner: str | None
     layer: str | None
     at: Position
-    node: ast.FunctionDef | ast.AsyncFunctionDef
-    lines: list[SourceLine]
     generated_name: str
+    signature: Signature
+    proceed_calls: tuple[ProceedCall, ...] = ()
+    decorators: tuple[str, ...] = ()
+    takes_instance: bool = True
+    instance_name: str = "self"
 
     @property
     def key(self) -> str:
@@ -67,7 +104,7 @@ class Function:
 
     @property
     def is_async(self) -> bool:
-        return isinstance(self.node, ast.AsyncFunctionDef)
+        return self.signature.is_async
 
 
 @dataclass
@@ -110,16 +147,29 @@ class BaseBlock:
 
 @dataclass
 class LayerFile:
-    """A parsed `.layers` file: the Python header, then the declarations in file order."""
+    """A parsed layer file: the header, then the declarations in file order.
+
+    `header_names` are the names the header defines that generated names could collide
+    with; `header_opaque` says the header may define more than can be seen (a Python
+    `import *`, a C++ `#include`).
+    """
 
     path: str
     source: str
     header: str
     header_lines: int
-    header_node: ast.Module | None
+    language: str = "python"
+    header_names: frozenset[str] = frozenset()
+    header_opaque: bool = False
     layers: list[LayerDecl] = field(default_factory=list)
     groups: list[GroupDecl] = field(default_factory=list)
     bases: list[BaseBlock] = field(default_factory=list)
+    # Context rules (`rule NAME: ...`), language-neutral: see contextros.language.rules.
+    rules: list[RuleDecl] = field(default_factory=list)
+    # Layers that drive ROS (`parameter L: NODE NAME = VALUE`, `lifecycle L: NODE STATE`):
+    # see contextros.language.bindings.
+    parameters: list[ParameterBinding] = field(default_factory=list)
+    lifecycles: list[LifecycleBinding] = field(default_factory=list)
 
     def all_functions(self) -> list[Function]:
         found: list[Function] = [f for b in self.bases for f in b.functions]

@@ -10,14 +10,20 @@ from contextros.protocol.events import (
     ActivationResult,
     ApplyState,
     ManagerAction,
+    ManagerFound,
+    ManagerLost,
     ParticipantAction,
     ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
     ParticipantReport,
+    PublishHeartbeat,
+    PublishProposal,
     PublishState,
     PublishStatus,
     Reply,
+    ReportRejected,
+    StateRejected,
 )
 from contextros.protocol.manager import (
     ManagerProtocol,
@@ -25,17 +31,23 @@ from contextros.protocol.manager import (
     ParticipantView,
     RegistryView,
 )
-from contextros.protocol.participant import DEFAULT_HEARTBEAT_PERIOD, ParticipantProtocol
+from contextros.protocol.participant import (
+    DEFAULT_HEARTBEAT_PERIOD,
+    DEFAULT_MANAGER_TIMEOUT,
+    ParticipantProtocol,
+)
 from contextros.protocol.relations import (
     LayerDeclaration,
     merge_declarations,
     relation_violations,
 )
-from contextros.protocol.state import INITIAL_STATE, LayerState
+from contextros.protocol.state import INITIAL_STATE, MAX_EPOCH, LayerState
 
 __all__ = [
     "DEFAULT_HEARTBEAT_PERIOD",
+    "DEFAULT_MANAGER_TIMEOUT",
     "INITIAL_STATE",
+    "MAX_EPOCH",
     "ActivationCommand",
     "ActivationFailed",
     "ActivationResult",
@@ -44,6 +56,8 @@ __all__ = [
     "LayerState",
     "ManagerAction",
     "ManagerError",
+    "ManagerFound",
+    "ManagerLost",
     "ManagerProtocol",
     "ManagerSettings",
     "ParticipantAction",
@@ -53,11 +67,15 @@ __all__ = [
     "ParticipantProtocol",
     "ParticipantReport",
     "ParticipantView",
+    "PublishHeartbeat",
+    "PublishProposal",
     "PublishState",
     "PublishStatus",
     "RegistryView",
     "Reply",
+    "ReportRejected",
     "StateFileError",
+    "StateRejected",
     "merge_declarations",
     "relation_violations",
 ]

@@ -31,6 +31,14 @@ class ParticipantReport:
     leaving: bool = False
     # Other nodes of the participant's process it speaks for (the configuration is per process).
     hosted: tuple[str, ...] = ()
+    # The participant has not heard the manager for its liveness bound.
+    manager_lost: bool = False
+    # Its vote on the atomic activation proposed as `vote_epoch` (0: none): yes, or why not.
+    vote_epoch: int = 0
+    vote_yes: bool = False
+    vote_reason: str = ""
+    # The manager that proposed it (a restarted manager may propose the same epoch again).
+    vote_manager_id: str = ""
 
 
 @dataclass(frozen=True)
@@ -44,6 +52,13 @@ class ActivationCommand:
     timeout: float = 0.0  # seconds; 0 = the manager's default
     requester: str = ""
     reason: str = ""
+    # A synchronous command succeeds only if these nodes (participants or nodes they host)
+    # and at least `expect_count` nodes in all applied the state; at least one always.
+    expect_nodes: tuple[str, ...] = ()
+    expect_count: int = 0
+    # Two-phase: every target votes first; any veto, timeout or lost target aborts with
+    # nothing changed anywhere, else the same epoch is committed everywhere.
+    atomic: bool = False
 
 
 @dataclass(frozen=True)
@@ -93,6 +108,31 @@ class ParticipantConflict:
 
 
 @dataclass(frozen=True)
+class ReportRejected:
+    """A status message failed validation and was ignored (log it; rate-limited)."""
+
+    node: str
+    problems: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class PublishHeartbeat:
+    """Broadcast the current state again on the best-effort heartbeat topic: it repeats a
+    new state shortly after its publication and tells participants the manager is alive.
+    Epoch 0 means the manager has no state yet (still recovering)."""
+
+    state: LayerState
+
+
+@dataclass(frozen=True)
+class PublishProposal:
+    """Ask every participant to vote on this state (an atomic activation's first phase).
+    Repeated while the vote is open; never applied by a participant."""
+
+    state: LayerState
+
+
+@dataclass(frozen=True)
 class ApplyState:
     """Participant side: make this state the node's decisive configuration (in its executor)."""
 
@@ -106,5 +146,36 @@ class PublishStatus:
     report: ParticipantReport
 
 
-ManagerAction = PublishState | Reply | ParticipantJoined | ParticipantDropped | ParticipantConflict
-ParticipantAction = ApplyState | PublishStatus
+@dataclass(frozen=True)
+class StateRejected:
+    """Participant side: a state message failed validation and was ignored (log it)."""
+
+    problems: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class ManagerLost:
+    """Participant side: the manager has not been heard for the liveness bound. The node
+    keeps its configuration; handlers may fall back to a safe one."""
+
+    silent_for: float
+
+
+@dataclass(frozen=True)
+class ManagerFound:
+    """Participant side: a manager is heard again (or for the first time after a loss)."""
+
+    manager_id: str
+
+
+ManagerAction = (
+    PublishState
+    | PublishHeartbeat
+    | PublishProposal
+    | Reply
+    | ParticipantJoined
+    | ParticipantDropped
+    | ParticipantConflict
+    | ReportRejected
+)
+ParticipantAction = ApplyState | PublishStatus | StateRejected | ManagerLost | ManagerFound

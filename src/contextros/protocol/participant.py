@@ -4,20 +4,35 @@ It decides which manager states to apply (only ones newer than anything it has a
 scheduled, so a reordered or duplicated message can never take the node back) and what to
 report. A state deferred by a critical section is reported as pending, and acknowledged
 (`applied_epoch`) only once the core has really applied it.
+
+On a lossy link every report may be lost: a new report is repeated shortly after it was
+first sent (`repeats`), and the heartbeat repeats it anyway. The manager's own heartbeat
+tells the participant it is still connected; silent for `manager_timeout`, the node knows
+it is cut off (`ManagerLost`) and may fall back to a safe configuration.
 """
 
 from __future__ import annotations
 
 from contextros.protocol.events import (
     ApplyState,
+    ManagerFound,
+    ManagerLost,
     ParticipantAction,
     ParticipantReport,
     PublishStatus,
+    StateRejected,
 )
-from contextros.protocol.relations import LayerDeclaration
+from contextros.protocol.relations import (
+    LayerDeclaration,
+    merge_declarations,
+    relation_violations,
+)
 from contextros.protocol.state import LayerState
+from contextros.protocol.validation import state_problems
 
 DEFAULT_HEARTBEAT_PERIOD = 0.25
+DEFAULT_MANAGER_TIMEOUT = 3.0  # the manager's liveness bound, the same in both directions
+DEFAULT_REPEATS = (0.05, 0.15)
 
 
 class ParticipantProtocol:
@@ -27,12 +42,16 @@ class ParticipantProtocol:
         incarnation: str,
         layers: tuple[LayerDeclaration, ...],
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+        manager_timeout: float = DEFAULT_MANAGER_TIMEOUT,
+        repeats: tuple[float, ...] = DEFAULT_REPEATS,
     ) -> None:
         self.node = node
         self.incarnation = incarnation
         self.layers = layers
         self.hosted: tuple[str, ...] = ()
         self.heartbeat_period = heartbeat_period
+        self.manager_timeout = manager_timeout
+        self.repeats = repeats
         self.applied_epoch = 0
         self.applied_manager_id = ""
         self.active: tuple[str, ...] = ()
@@ -42,6 +61,17 @@ class ParticipantProtocol:
         # Set by the adapter from the core: a critical section is open in this node.
         self.critical_section_open = False
         self._last_sent: float | None = None
+        self._repeat_at: list[float] = []
+        # Manager liveness: when it was last heard (or when we started listening), whether
+        # we told the node it is lost, and which manager we heard last.
+        self._manager_heard: float | None = None
+        self.manager_lost = False
+        self.manager_id = ""
+        # The last vote on an atomic activation (a proposal), repeated in every report.
+        self.vote_epoch = 0
+        self.vote_yes = False
+        self.vote_reason = ""
+        self.vote_manager_id = ""
 
     @property
     def newest_epoch(self) -> int:
@@ -57,6 +87,11 @@ class ParticipantProtocol:
     def in_critical_section(self) -> bool:
         return self.critical_section_open or self.deferring
 
+    @property
+    def next_repeat(self) -> float | None:
+        """When a repeat of the last report is due (the adapter wakes up for it), if any."""
+        return self._repeat_at[0] if self._repeat_at else None
+
     def report(self, leaving: bool = False) -> ParticipantReport:
         return ParticipantReport(
             node=self.node,
@@ -71,17 +106,56 @@ class ParticipantProtocol:
             error=self.error,
             leaving=leaving,
             hosted=self.hosted,
+            manager_lost=self.manager_lost,
+            vote_epoch=self.vote_epoch,
+            vote_yes=self.vote_yes,
+            vote_reason=self.vote_reason,
+            vote_manager_id=self.vote_manager_id,
         )
 
     # -- events -----------------------------------------------------------------------------
 
     def announce(self, now: float) -> list[ParticipantAction]:
-        return [self._send(now)]
+        if self._manager_heard is None:
+            self._manager_heard = now  # the manager-lost clock starts with the node
+        return [self._send(now, repeat=True)]
 
-    def receive_state(self, state: LayerState) -> list[ParticipantAction]:
-        if state.epoch <= self.newest_epoch:
-            return []
-        return [ApplyState(state)]
+    def receive_state(self, state: LayerState, now: float | None = None) -> list[ParticipantAction]:
+        """A state from the manager (reliable topic or heartbeat): apply it if newer."""
+        problems = state_problems(state)
+        if problems:
+            return [StateRejected(tuple(problems[:5]))]
+        actions = self._heard_manager(state.manager_id, now)
+        if state.epoch == 0 or state.epoch <= self.newest_epoch:
+            return actions
+        return [*actions, ApplyState(state)]
+
+    def receive_proposal(
+        self, proposal: LayerState, now: float, veto: str = ""
+    ) -> list[ParticipantAction]:
+        """An atomic activation asks whether this node can apply `proposal`: vote once.
+
+        Yes means: no critical section is open or deferring a switch now, the proposed
+        layers break none of the relations this node declares, and `veto` (the
+        application's own answer, from the adapter) is empty. A vote changes nothing: the
+        node switches only when the manager commits, with a state of that epoch.
+        """
+        problems = state_problems(proposal)
+        if problems:
+            return [StateRejected(tuple(problems[:5]))]
+        actions = self._heard_manager(proposal.manager_id, now)
+        voted = (self.vote_epoch, self.vote_manager_id) == (proposal.epoch, proposal.manager_id)
+        if proposal.epoch <= self.newest_epoch or voted:
+            return actions  # stale, or already voted (every report repeats the vote)
+        reasons = [veto] if veto else []
+        if self.in_critical_section:
+            reasons.append("in a critical section")
+        reasons += relation_violations(proposal.active, merge_declarations(self.layers))
+        self.vote_epoch = proposal.epoch
+        self.vote_manager_id = proposal.manager_id
+        self.vote_yes = not reasons
+        self.vote_reason = _printable("; ".join(reasons))
+        return [*actions, self._send(now, repeat=True)]
 
     def applied(self, state: LayerState, now: float) -> list[ParticipantAction]:
         """The core applied `state` (at once, or when a critical section closed)."""
@@ -90,18 +164,18 @@ class ParticipantProtocol:
         self.applied_epoch = state.epoch
         self.applied_manager_id = state.manager_id
         self.active = state.active
-        return [self._send(now)]
+        return [self._send(now, repeat=True)]
 
     def deferred(self, state: LayerState, now: float) -> list[ParticipantAction]:
         """The core queued `state` behind an open critical section."""
         self.pending_epoch = max(self.pending_epoch, state.epoch)
-        return [self._send(now)]
+        return [self._send(now, repeat=True)]
 
     def failed(self, state: LayerState, error: str, now: float) -> list[ParticipantAction]:
         """The core refused `state` (say, a local relation the manager did not know)."""
         self.failed_epoch = max(self.failed_epoch, state.epoch)
-        self.error = f"epoch {state.epoch}: {error}"
-        return [self._send(now)]
+        self.error = _printable(f"epoch {state.epoch}: {error}")
+        return [self._send(now, repeat=True)]
 
     def host(
         self, hosted: tuple[str, ...], layers: tuple[LayerDeclaration, ...], now: float
@@ -109,16 +183,55 @@ class ParticipantProtocol:
         """Speak for these other nodes of the process, implementing these layers in all."""
         self.hosted = hosted
         self.layers = layers
-        return [self._send(now)]
+        return [self._send(now, repeat=True)]
 
     def tick(self, now: float) -> list[ParticipantAction]:
-        if self._last_sent is not None and now - self._last_sent < self.heartbeat_period:
-            return []
-        return [self._send(now)]
+        actions: list[ParticipantAction] = []
+        if self._manager_heard is None:
+            self._manager_heard = now
+        silent = now - self._manager_heard
+        if not self.manager_lost and silent > self.manager_timeout:
+            self.manager_lost = True
+            actions.append(ManagerLost(silent))
+        due_repeat = bool(self._repeat_at) and now >= self._repeat_at[0] - 1e-9
+        # The timer that calls this runs with the heartbeat's period: with a strict
+        # comparison its jitter skipped every other beat (measured: 1.7 reports/s, not 4).
+        due_beat = self._last_sent is None or now - self._last_sent >= 0.8 * self.heartbeat_period
+        if due_repeat or due_beat or actions:
+            self._repeat_at = [t for t in self._repeat_at if t > now + 1e-9]
+            actions.append(self._send(now))
+        return actions
 
     def leave(self, now: float) -> list[ParticipantAction]:
         return [PublishStatus(self.report(leaving=True))]
 
-    def _send(self, now: float) -> PublishStatus:
+    # -- internals --------------------------------------------------------------------------
+
+    def _heard_manager(self, manager_id: str, now: float | None) -> list[ParticipantAction]:
+        if now is None:
+            return []
+        actions: list[ParticipantAction] = []
+        self._manager_heard = now
+        new_manager = bool(manager_id) and manager_id != self.manager_id
+        if manager_id:
+            self.manager_id = manager_id
+        if self.manager_lost:
+            self.manager_lost = False
+            actions.append(ManagerFound(manager_id))
+        if new_manager or actions:
+            # A (re)started or regained manager learns about this node at once, not at the
+            # next heartbeat: its recovery and our rejoining are faster.
+            actions.append(self._send(now, repeat=True))
+        return actions
+
+    def _send(self, now: float, repeat: bool = False) -> PublishStatus:
         self._last_sent = now
+        if repeat:
+            self._repeat_at = [now + delay for delay in self.repeats]
         return PublishStatus(self.report())
+
+
+def _printable(text: str, limit: int = 1000) -> str:
+    """Free text as the manager accepts it (printable, bounded): an exception's message
+    often spans lines, and a report the manager refuses would be worse than a flat one."""
+    return "".join(c if c.isprintable() else " " for c in text)[:limit]

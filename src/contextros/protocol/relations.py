@@ -19,6 +19,8 @@ class LayerDeclaration:
     excludes: frozenset[str] = frozenset()
     requires: frozenset[str] = frozenset()
     group: str = ""
+    # Layers this one comes after (outside) when both are active (`layer X after B`).
+    after: frozenset[str] = frozenset()
 
     def merged(self, other: LayerDeclaration) -> LayerDeclaration:
         """The union of two nodes' declarations of one layer (the stricter reading)."""
@@ -28,6 +30,7 @@ class LayerDeclaration:
             excludes=self.excludes | other.excludes,
             requires=self.requires | other.requires,
             group=",".join(groups),
+            after=self.after | other.after,
         )
 
     @property
@@ -77,3 +80,58 @@ def relation_violations(
 def _excludes_of(name: str, declarations: Mapping[str, LayerDeclaration]) -> frozenset[str]:
     declaration = declarations.get(name)
     return declaration.excludes if declaration else frozenset()
+
+
+@dataclass(frozen=True)
+class DeclaredOrder:
+    """An active set composed in the order the `after` relations declare."""
+
+    layers: tuple[str, ...]
+    # (later, earlier) pairs whose requested order contradicted a declaration: moved.
+    moved: tuple[tuple[str, str], ...] = ()
+    # Layers whose declared orders form a cycle (then `layers` is the requested order).
+    cycle: tuple[str, ...] = ()
+
+
+def declared_order(
+    active: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> DeclaredOrder:
+    """`active` reordered so that every declared `after` holds (the later layer outermost);
+    layers unrelated by `after` keep their requested order (a stable topological sort)."""
+    wanted = list(dict.fromkeys(active))
+    position = {name: index for index, name in enumerate(wanted)}
+    must_follow: dict[str, set[str]] = {name: set() for name in wanted}
+    for name in wanted:
+        declaration = declarations.get(name)
+        for earlier in declaration.after if declaration else ():
+            if earlier in must_follow and earlier != name:
+                must_follow[name].add(earlier)
+    ordered: list[str] = []
+    placed: set[str] = set()
+    remaining = list(wanted)
+    while remaining:
+        ready = next((n for n in remaining if must_follow[n] <= placed), None)
+        if ready is None:
+            return DeclaredOrder(tuple(wanted), cycle=tuple(sorted(remaining)))
+        ordered.append(ready)
+        placed.add(ready)
+        remaining.remove(ready)
+    moved = tuple(
+        (later, earlier)
+        for later in wanted
+        for earlier in sorted(must_follow[later])
+        if position[earlier] > position[later]
+    )
+    return DeclaredOrder(tuple(ordered), moved)
+
+
+# How the manager's answers say that it reordered the requested layers (clients quote it).
+ORDER_NOTE = "; composed as declared: "
+
+
+def order_note(moved: Iterable[tuple[str, str]]) -> str:
+    """'; composed as declared: Rubble after Flooded, ...' ("" when nothing moved)."""
+    moved = list(moved)
+    if not moved:
+        return ""
+    return ORDER_NOTE + ", ".join(f"{later} after {earlier}" for later, earlier in moved)

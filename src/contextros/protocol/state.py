@@ -11,6 +11,11 @@ from dataclasses import dataclass, field
 
 from contextros.protocol.errors import StateFileError
 
+# Epochs go up by one per state. At a thousand states a second, 2**48 is reached after
+# 8,900 years: an epoch above it was not produced by an honest manager, and refusing it
+# keeps every `epoch + 1` far from the uint64 limit (2**64 - 1 crashed the old manager).
+MAX_EPOCH = 2**48
+
 
 @dataclass(frozen=True)
 class LayerState:
@@ -48,9 +53,13 @@ class LayerState:
             data = json.loads(text)
             epoch = data["epoch"]
             active = data["active"]
-            if not isinstance(epoch, int) or epoch < 0:
+            if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
                 raise ValueError(f"epoch must be a non-negative integer, got {epoch!r}")
-            if not isinstance(active, list) or not all(isinstance(n, str) for n in active):
+            if epoch > MAX_EPOCH:
+                raise ValueError(f"epoch {epoch} is beyond any epoch an honest manager issues")
+            if not isinstance(active, list) or not all(
+                isinstance(n, str) and n.isidentifier() for n in active
+            ):
                 raise ValueError("active must be a list of layer names")
             return cls(
                 epoch=epoch,

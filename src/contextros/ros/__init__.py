@@ -1,21 +1,63 @@
 """The ROS 2 adapter: the Layer manager node, context nodes, the activation client.
 
 Thin glue around `contextros.protocol` (all decisions live there); importing this
-package needs rclpy and the built `contextros_interfaces` package.
+package's names needs rclpy and the built `contextros_interfaces` package. Names are
+imported lazily (PEP 562), each from its own module on first use: a client command
+imports the client, not the manager and the participant.
 """
 
-from contextros.ros.client import LayerClient
-from contextros.ros.manager_node import LayerManagerNode, StateFile
-from contextros.ros.participant import ContextNode, ContextParticipant, declaration_of
-from contextros.ros.spinning import spin_nodes
-from contextros.ros.topics import (
-    ACTIVATE_SERVICE,
-    QUERY_SERVICE,
-    STATE_QOS,
-    STATE_TOPIC,
-    STATUS_QOS,
-    STATUS_TOPIC,
-)
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
+    from contextros.ros.client import LayerClient
+    from contextros.ros.manager_node import LayerManagerNode, StateFile
+    from contextros.ros.participant import ContextNode, ContextParticipant, declaration_of
+    from contextros.ros.spinning import spin_nodes
+    from contextros.ros.topics import (
+        ACTIVATE_SERVICE,
+        QUERY_SERVICE,
+        STATE_QOS,
+        STATE_TOPIC,
+        STATUS_QOS,
+        STATUS_TOPIC,
+    )
+
+_LAZY = {
+    "ActivationFailed": "contextros.protocol.errors",
+    "ActivationResult": "contextros.protocol.events",
+    "ManagerError": "contextros.protocol.errors",
+    "LayerClient": "contextros.ros.client",
+    "LayerManagerNode": "contextros.ros.manager_node",
+    "StateFile": "contextros.ros.manager_node",
+    "ContextNode": "contextros.ros.participant",
+    "ContextParticipant": "contextros.ros.participant",
+    "declaration_of": "contextros.ros.participant",
+    "spin_nodes": "contextros.ros.spinning",
+    "ACTIVATE_SERVICE": "contextros.ros.topics",
+    "QUERY_SERVICE": "contextros.ros.topics",
+    "STATE_QOS": "contextros.ros.topics",
+    "STATE_TOPIC": "contextros.ros.topics",
+    "STATUS_QOS": "contextros.ros.topics",
+    "STATUS_TOPIC": "contextros.ros.topics",
+}
+
+
+def __getattr__(name: str) -> Any:
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'contextros.ros' has no attribute {name!r}")
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
 
 __all__ = [
     "ACTIVATE_SERVICE",
@@ -24,10 +66,13 @@ __all__ = [
     "STATE_TOPIC",
     "STATUS_QOS",
     "STATUS_TOPIC",
+    "ActivationFailed",
+    "ActivationResult",
     "ContextNode",
     "ContextParticipant",
     "LayerClient",
     "LayerManagerNode",
+    "ManagerError",
     "StateFile",
     "declaration_of",
     "spin_nodes",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import getpass
 import os
+import time
 from collections.abc import Iterable
 from typing import Any
 
@@ -11,7 +12,13 @@ import rclpy
 from contextros_interfaces.srv import Activate, QueryRegistry
 from rclpy.node import Node
 
-from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
+from contextros.protocol import (
+    ActivationCommand,
+    ActivationFailed,
+    ActivationResult,
+    ManagerError,
+)
+from contextros.protocol.validation import command_problems
 from contextros.ros.messages import command_to_request, result_from_response
 from contextros.ros.topics import ACTIVATE_SERVICE, QUERY_SERVICE
 
@@ -23,6 +30,9 @@ REPLY_MARGIN = 2.0
 ATTEMPTS = 3
 # A synchronous command without a timeout waits the manager's default (5 s unless set).
 ASSUMED_DEFAULT_TIMEOUT = 10.0
+# Discovery: how often to look for the manager's services, how long to wait for a probe.
+POLL = 0.01
+PROBE = 0.2
 
 
 def default_requester() -> str:
@@ -39,6 +49,12 @@ class LayerClient:
     `request`, `activate`, `deactivate` and `query` spin the node until the answer comes:
     call them from a main loop or another thread, not from one of the node's callbacks
     (there, use `request_async` and handle the future's result with `result_of`).
+
+    One default everywhere, as on the command line: a command returns once the manager
+    published the new state (`synchronous=False`); pass `synchronous=True` (the CLI's
+    `--sync`) to return once every live node applied it. `request` returns the
+    manager's answer, success or not; `activate` and `deactivate` raise
+    `ActivationFailed` instead of returning a failed answer. See docs/client.md.
     """
 
     def __init__(self, node: Node, requester: str | None = None) -> None:
@@ -48,12 +64,41 @@ class LayerClient:
         self._query: Any = node.create_client(QueryRegistry, QUERY_SERVICE)
 
     def wait_for_manager(self, timeout: float = 5.0) -> None:
-        if not self._activate.wait_for_service(timeout_sec=timeout):
-            domain = os.environ.get("ROS_DOMAIN_ID", "0")
-            raise ManagerError(
-                f"no Layer manager answers on {ACTIVATE_SERVICE} (ROS_DOMAIN_ID={domain}) "
-                f"after {timeout:g} s; start one with `contextros manager`"
-            )
+        """Return once the manager's services are discovered and answer this client.
+
+        Polls every 10 ms (rclpy's own `wait_for_service` sleeps 0.25 s between looks),
+        then asks the registry once with short retries: a service can be discovered by
+        the client before the manager has discovered the client's reply reader (Fast
+        DDS, ros2/rmw_fastrtps#842), and a reply sent meanwhile is lost; a command sent
+        after an answered query does not wait seconds for a lost reply.
+        """
+        deadline = time.monotonic() + timeout
+        while not (self._activate.service_is_ready() and self._query.service_is_ready()):
+            if time.monotonic() >= deadline or not self.node.context.ok():
+                domain = os.environ.get("ROS_DOMAIN_ID", "0")
+                raise ManagerError(
+                    f"no Layer manager answers on {self.service_name} (ROS_DOMAIN_ID={domain}) "
+                    f"after {timeout:g} s; start one with `contextros manager` (in the same "
+                    "namespace: `--ros-args -r __ns:=...`)"
+                )
+            time.sleep(POLL)
+        while True:
+            future = self._query.call_async(QueryRegistry.Request())
+            left = deadline - time.monotonic()
+            rclpy.spin_until_future_complete(self.node, future, timeout_sec=min(PROBE, left))
+            if future.done():
+                return
+            self._query.remove_pending_request(future)
+            if time.monotonic() >= deadline:
+                raise ManagerError(
+                    f"the Layer manager on {self.service_name} did not answer within {timeout:g} s"
+                )
+
+    @property
+    def service_name(self) -> str:
+        """The activation service's name as resolved in this node's namespace."""
+        name: str = self.node.resolve_service_name(ACTIVATE_SERVICE)
+        return name
 
     def request_async(
         self,
@@ -63,10 +108,42 @@ class LayerClient:
         synchronous: bool = False,
         timeout: float = 0.0,
         reason: str = "",
+        expect_nodes: Iterable[str] = (),
+        expect_count: int = 0,
+        atomic: bool = False,
     ) -> Any:
-        """Send one activation command; returns the rclpy Future of the service response."""
+        """Send one activation command; returns the rclpy Future of the service response.
+
+        The command is checked here first (ActivationFailed names the field): rclpy cuts a
+        string at a NUL byte, so 'Night\\x00evil' would reach the manager as 'Night'.
+        """
+        activate, deactivate, expect_nodes = tuple(activate), tuple(deactivate), tuple(expect_nodes)
+        problems = command_problems(
+            ActivationCommand(
+                0,
+                activate=activate,
+                deactivate=deactivate,
+                synchronous=synchronous,
+                timeout=timeout,
+                requester=self.requester,
+                reason=reason,
+                expect_nodes=expect_nodes,
+                expect_count=expect_count,
+                atomic=atomic,
+            )
+        )
+        if problems:
+            raise ActivationFailed(f"invalid command: {'; '.join(problems)}; nothing sent")
         request = command_to_request(
-            activate, deactivate, synchronous, timeout, self.requester, reason
+            activate,
+            deactivate,
+            synchronous,
+            timeout,
+            self.requester,
+            reason,
+            expect_nodes,
+            expect_count,
+            atomic,
         )
         return self._activate.call_async(request)
 
@@ -83,15 +160,35 @@ class LayerClient:
         synchronous: bool = False,
         timeout: float = 0.0,
         reason: str = "",
+        expect_nodes: Iterable[str] = (),
+        expect_count: int = 0,
+        atomic: bool = False,
     ) -> ActivationResult:
-        """Send one activation command and wait (spinning the node) for the manager's answer."""
-        if synchronous:
-            wait = (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
+        """Send one activation command and wait (spinning the node) for the manager's answer.
+
+        A synchronous command succeeds once every live participant applied the new state;
+        `expect_nodes` and `expect_count` add what the requester knows must be reached
+        (nodes the manager may have dropped, a number of nodes), and a command that
+        reached no node at all never succeeds. `atomic=True`: every live participant
+        votes first, and either all switch to the new epoch or none does (the answer names
+        who vetoed and why); it waits up to twice `timeout` (vote, then acknowledgements).
+        """
+        activate, deactivate, expect_nodes = tuple(activate), tuple(deactivate), tuple(expect_nodes)
+        if synchronous or atomic:
+            phases = 2 if atomic else 1
+            wait = phases * (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
         else:
             wait = REPLY_MARGIN
         for _ in range(ATTEMPTS):
             future = self.request_async(
-                activate, deactivate, synchronous=synchronous, timeout=timeout, reason=reason
+                activate,
+                deactivate,
+                synchronous=synchronous,
+                timeout=timeout,
+                reason=reason,
+                expect_nodes=expect_nodes,
+                expect_count=expect_count,
+                atomic=atomic,
             )
             rclpy.spin_until_future_complete(self.node, future, timeout_sec=wait)
             if future.done():
@@ -102,15 +199,47 @@ class LayerClient:
         )
 
     def activate(
-        self, *layers: str, synchronous: bool = True, timeout: float = 0.0
+        self,
+        *layers: str,
+        synchronous: bool = False,
+        timeout: float = 0.0,
+        expect_nodes: Iterable[str] = (),
+        expect_count: int = 0,
+        atomic: bool = False,
     ) -> ActivationResult:
         """Activate `layers`; raise ActivationFailed with the manager's message on failure."""
-        return _checked(self.request(layers, synchronous=synchronous, timeout=timeout))
+        return _checked(
+            self.request(
+                layers,
+                synchronous=synchronous,
+                timeout=timeout,
+                expect_nodes=expect_nodes,
+                expect_count=expect_count,
+                atomic=atomic,
+            )
+        )
 
     def deactivate(
-        self, *layers: str, synchronous: bool = True, timeout: float = 0.0
+        self,
+        *layers: str,
+        synchronous: bool = False,
+        timeout: float = 0.0,
+        expect_nodes: Iterable[str] = (),
+        expect_count: int = 0,
+        atomic: bool = False,
     ) -> ActivationResult:
-        return _checked(self.request((), layers, synchronous=synchronous, timeout=timeout))
+        """Deactivate `layers`; raise ActivationFailed with the manager's message on failure."""
+        return _checked(
+            self.request(
+                (),
+                layers,
+                synchronous=synchronous,
+                timeout=timeout,
+                expect_nodes=expect_nodes,
+                expect_count=expect_count,
+                atomic=atomic,
+            )
+        )
 
     def query(self, timeout: float = 5.0) -> Any:
         """The manager's registry (`QueryRegistry` response); asks again if a reply is lost."""

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import rclpy
 from rclpy.node import Node
 
+from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.core import Layer
 from contextros.protocol import ManagerError
 from contextros.ros.client import LayerClient
@@ -114,8 +115,8 @@ def _wait_for_participants(client: LayerClient, count: int, timeout: float = 60.
     raise ManagerError(f"fewer than {count} participants registered within {timeout:g} s")
 
 
-def _run_swarm(count: int, first: int) -> int:
-    rclpy.init()
+def _run_swarm(count: int, first: int, ros_arguments: Sequence[str]) -> int:
+    rclpy.init(args=["latency", *ros_arguments])
     nodes = context_node_swarm(count, first=first)
     print(json.dumps({"event": "ready", "nodes": count}), flush=True)
     spin_nodes(nodes)
@@ -123,16 +124,18 @@ def _run_swarm(count: int, first: int) -> int:
     return 0
 
 
-def _run_measurement(count: int, rounds: int, processes: int) -> int:
+def _run_measurement(count: int, rounds: int, processes: int, ros_arguments: Sequence[str]) -> int:
     env = dict(os.environ)
     env.pop("RMW_IMPLEMENTATION", None)
     env.setdefault("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    children = [subprocess.Popen([sys.executable, "-m", "contextros", "manager"], env=env)]
+    children = [
+        subprocess.Popen([sys.executable, "-m", "contextros", "manager", *ros_arguments], env=env)
+    ]
     share, extra = divmod(count, processes)
     first = 0
     for index in range(processes):
         size = share + (1 if index < extra else 0)
-        argv = ["swarm", "--nodes", str(size), "--first", str(first)]
+        argv = ["swarm", "--nodes", str(size), "--first", str(first), *ros_arguments]
         first += size
         children.append(
             subprocess.Popen(
@@ -141,7 +144,7 @@ def _run_measurement(count: int, rounds: int, processes: int) -> int:
                 stdout=subprocess.DEVNULL,
             )
         )
-    rclpy.init()
+    rclpy.init(args=["latency", *ros_arguments])
     node = Node("contextros_latency_client")
     try:
         client = LayerClient(node, requester="latency")
@@ -167,10 +170,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=100)
     parser.add_argument("--processes", type=int, default=1, help="spread the nodes over these")
     parser.add_argument("--first", type=int, default=0, help=argparse.SUPPRESS)
-    args = parser.parse_args(argv)
+    # Standard ROS arguments (e.g. `--ros-args -r __ns:=/robot1`) apply to every process.
+    own, ros_arguments = split_ros_arguments(sys.argv[1:] if argv is None else argv)
+    args = parser.parse_args(own)
     if args.mode == "swarm":
-        return _run_swarm(args.nodes, args.first)
-    return _run_measurement(args.nodes, args.rounds, max(1, args.processes))
+        return _run_swarm(args.nodes, args.first, ros_arguments)
+    return _run_measurement(args.nodes, args.rounds, max(1, args.processes), ros_arguments)
 
 
 if __name__ == "__main__":

@@ -11,18 +11,23 @@ from __future__ import annotations
 
 import dataclasses
 import os
+import threading
 import time
 import uuid
+from collections import deque
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from contextros_interfaces.msg import LayerState as LayerStateMsg
 from contextros_interfaces.msg import ParticipantStatus
 from contextros_interfaces.srv import Activate, QueryRegistry
 from rclpy.node import Node
 
+from contextros.bindings import Bindings
 from contextros.protocol import (
+    ActivationCommand,
+    ActivationResult,
     LayerState,
     ManagerAction,
     ManagerProtocol,
@@ -30,8 +35,11 @@ from contextros.protocol import (
     ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
+    PublishHeartbeat,
+    PublishProposal,
     PublishState,
     Reply,
+    ReportRejected,
 )
 from contextros.ros.messages import (
     command_from_request,
@@ -40,9 +48,18 @@ from contextros.ros.messages import (
     report_from_msg,
     state_to_msg,
 )
+from contextros.rules import Firing, RuleSet
+
+if TYPE_CHECKING:
+    from contextros.ros.bindings import BindingDriver
+    from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
     ACTIVATE_SERVICE,
+    HEARTBEAT_QOS,
+    HEARTBEAT_TOPIC,
     MANAGER_NODE_NAME,
+    PROPOSAL_QOS,
+    PROPOSAL_TOPIC,
     QUERY_SERVICE,
     STATE_QOS,
     STATE_TOPIC,
@@ -132,6 +149,8 @@ class LayerManagerNode(Node):
         state_file: Path | None = None,
         node_name: str = MANAGER_NODE_NAME,
         tick_period: float = 0.05,
+        rules: RuleSet | None = None,
+        bindings: Bindings | None = None,
         **node_options: Any,
     ) -> None:
         super().__init__(node_name, **node_options)
@@ -147,6 +166,8 @@ class LayerManagerNode(Node):
         # an rclpy log call costs ~0.3 ms, longer than a whole topic round trip.
         self._postponed_logs: list[str] = []
         self._state_pub = self.create_publisher(LayerStateMsg, STATE_TOPIC, STATE_QOS)
+        self._heartbeat_pub = self.create_publisher(LayerStateMsg, HEARTBEAT_TOPIC, HEARTBEAT_QOS)
+        self._proposal_pub = self.create_publisher(LayerStateMsg, PROPOSAL_TOPIC, PROPOSAL_QOS)
         self.create_subscription(ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
         activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
         self._responses = _DeferredResponses(
@@ -156,6 +177,28 @@ class LayerManagerNode(Node):
         self.create_timer(tick_period, self._on_tick)
         origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
         self.get_logger().info(f"Layer manager {self.manager_id} recovering from {origin}")
+        # Context rules run here, in the manager's executor: their commands enter the
+        # protocol directly, in one order with the clients' (docs/rules.md says why).
+        self._rule_requests: dict[int, Firing] = {}
+        self._next_rule_request = 0
+        self._retried_at = 0  # the epoch after which refused rule firings were tried again
+        # Layers that drive ROS: parameters and lifecycle states set before a state is
+        # published (docs/ros-integration.md); commands wait their turn meanwhile.
+        self.bindings: BindingDriver | None = None
+        self._commands: deque[ActivationCommand] = deque()
+        self._driving = False
+        self._driven: list[tuple[ActivationCommand | None, str]] = []
+        self._driven_lock = threading.Lock()
+        self._driven_guard = self.create_guard_condition(self._on_driven)
+        if bindings:
+            from contextros.ros.bindings import BindingDriver
+
+            self.bindings = BindingDriver(self, bindings)
+        self.rules: RuleRunner | None = None
+        if rules is not None and rules.rules:
+            from contextros.ros.rules import RuleRunner
+
+            self.rules = RuleRunner(self, rules, self._submit_rule, self._relations)
 
     # -- executor callbacks -----------------------------------------------------------------
 
@@ -169,7 +212,143 @@ class LayerManagerNode(Node):
 
     def _on_tick(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))
+        if self.rules is not None:
+            self.rules.tick()
+            if self._retried_at != self.protocol.state.epoch:
+                self._retried_at = self.protocol.state.epoch
+                self.rules.retry()
+        self._reconcile()
+        if self._commands:
+            self._next_command()
         self._flush_logs()
+
+    # -- commands, with the ROS side of layers first ----------------------------------------
+
+    def _command(self, command: ActivationCommand) -> None:
+        if self.bindings is None:
+            self._run(self.protocol.receive_command(command, time.monotonic()))
+            return
+        self._commands.append(command)
+        self._next_command()
+
+    def _next_command(self) -> None:
+        """Run queued commands; one whose layers set parameters or lifecycle states waits
+        until those are done (in a worker thread) and is refused, naming what failed, if
+        they cannot be."""
+        assert self.bindings is not None
+        # While the manager recovers, commands wait here (the protocol would queue them and
+        # run them at the end of recovery, past the ROS side): the tick brings them back.
+        while self._commands and not self._driving and not self.protocol.recovering:
+            command = self._commands.popleft()
+            problem, planned = self.protocol.preview(command)
+            applied = self.bindings.applied
+            if problem or not self.bindings.plan(applied, planned):
+                self._run(self.protocol.receive_command(command, time.monotonic()))
+                continue
+            self._drive(command, applied, planned)
+
+    def _drive(
+        self, command: ActivationCommand | None, old: tuple[str, ...], new: tuple[str, ...]
+    ) -> None:
+        assert self.bindings is not None
+        self._driving = True
+        driver = self.bindings
+
+        def work() -> None:
+            from contextros.ros.bindings import BindingError
+
+            try:
+                driver.switch(old, new)
+                error = ""
+            except BindingError as failure:
+                error = str(failure)
+            except Exception as failure:  # a bug must not leave the manager stuck
+                error = f"internal error: {failure!r}"
+            with self._driven_lock:
+                self._driven.append((command, error))
+            self._driven_guard.trigger()
+
+        threading.Thread(target=work, name="contextros-bindings", daemon=True).start()
+
+    def _on_driven(self) -> None:
+        with self._driven_lock:
+            driven, self._driven = self._driven, []
+        for command, error in driven:
+            self._driving = False
+            if command is None:
+                if error:
+                    self.get_logger().error(f"layers' ROS side not reached: {error}")
+            elif error:
+                result = ActivationResult(
+                    False,
+                    f"{error}; nothing changed",
+                    self.protocol.state.epoch,
+                    self.protocol.state.active,
+                )
+                self._reply(command.request_id, result)
+            else:
+                self._run(self.protocol.receive_command(command, time.monotonic()))
+        self._reconcile()
+        self._next_command()
+
+    def _reconcile(self) -> None:
+        """States not made by a command (recovery), or a command whose outcome differed
+        from its preview: bring the ROS side to the published state."""
+        if self.bindings is None or self._driving or self.protocol.recovering:
+            return
+        active = self.protocol.state.active
+        if self.bindings.applied != active and self.bindings.plan(self.bindings.applied, active):
+            self._drive(None, self.bindings.applied, active)
+        elif self.bindings.applied != active:
+            self.bindings.applied = active
+
+    def _reply(self, request_id: int, result: ActivationResult) -> None:
+        if request_id in self._rule_requests:
+            self._rule_outcome(self._rule_requests.pop(request_id), result)
+        else:
+            self._responses.answer(request_id, result)
+            if not result.success:
+                self.get_logger().warning(f"refused: {result.message}")
+
+    # -- rules ------------------------------------------------------------------------------
+
+    def _submit_rule(self, firing: Firing) -> None:
+        """A rule's firing is an ordinary synchronous command (negative request ids)."""
+        self._next_rule_request -= 1
+        self._rule_requests[self._next_rule_request] = firing
+        command = ActivationCommand(
+            request_id=self._next_rule_request,
+            activate=firing.activate,
+            deactivate=firing.deactivate,
+            synchronous=True,
+            requester=firing.requester,
+            reason=firing.reason,
+        )
+        self._command(command)
+
+    def _relations(self) -> dict[str, tuple[frozenset[str], frozenset[str]]]:
+        return {
+            name: (declaration.groups, declaration.excludes)
+            for name, declaration in self.protocol.declarations().items()
+        }
+
+    def _rule_outcome(self, firing: Firing, result: ActivationResult) -> None:
+        target = ", ".join(firing.activate) or "without " + ", ".join(firing.deactivate)
+        if result.success and result.message.startswith("no change"):
+            self.get_logger().info(f"rule {firing.rule}: {target} already in force (no change)")
+        elif result.success:
+            self.get_logger().info(
+                f"rule {firing.rule} switched to {target}: {len(result.acknowledged)} nodes "
+                f"applied it in {result.elapsed * 1000:.1f} ms (epoch {result.epoch}, "
+                f"[{', '.join(result.active)}])"
+            )
+        else:
+            self.get_logger().warning(
+                f"rule {firing.rule} could not switch to {target}: {result.message} "
+                "(tried again after the next state)"
+            )
+            if self.rules is not None:
+                self.rules.refused(firing)
 
     def _flush_logs(self) -> None:
         logs, self._postponed_logs = self._postponed_logs, []
@@ -181,7 +360,7 @@ class LayerManagerNode(Node):
         request_id = self._next_request_id
         self._responses.expect(request_id, response)
         command = command_from_request(request_id, request)
-        self._run(self.protocol.receive_command(command, time.monotonic()))
+        self._command(command)
         return response
 
     def _on_query(self, request: Any, response: Any) -> Any:
@@ -211,16 +390,30 @@ class LayerManagerNode(Node):
                     f"epoch {action.state.epoch}: [{', '.join(action.state.active)}] "
                     f"({action.state.requester or '?'}: {action.state.reason or '-'})"
                 )
+            elif isinstance(action, PublishProposal):
+                self._proposal_pub.publish(state_to_msg(action.state, time.time()))
+            elif isinstance(action, PublishHeartbeat):
+                self._heartbeat_pub.publish(state_to_msg(action.state, time.time()))
+            elif isinstance(action, Reply) and action.request_id in self._rule_requests:
+                self._flush_logs()
+                self._rule_outcome(self._rule_requests.pop(action.request_id), action.result)
             elif isinstance(action, Reply):
                 self._responses.answer(action.request_id, action.result)
                 self._flush_logs()
+                if not action.result.success:  # logged after the answer: it costs ~0.3 ms
+                    self.get_logger().warning(f"refused: {action.result.message}")
             elif isinstance(action, ParticipantJoined):
                 verb = "restarted" if action.restarted else "joined"
                 self.get_logger().info(f"participant {action.node} {verb}")
             elif isinstance(action, ParticipantDropped):
                 self.get_logger().warning(f"participant {action.node} dropped: {action.reason}")
+            elif isinstance(action, ReportRejected):
+                self.get_logger().warning(
+                    f"ignored a status from {action.node!r}: {'; '.join(action.problems)}"
+                )
             elif isinstance(action, ParticipantConflict):
                 self.get_logger().error(
-                    f"two live nodes are named {action.node}: their acknowledgements cannot be "
-                    "told apart; give each context node a unique name (or namespace)"
+                    f"two live processes are named {action.node}: both are tracked and each "
+                    "must acknowledge for itself; give each context node a unique name "
+                    "(or namespace)"
                 )

@@ -33,8 +33,9 @@ def declaration_to_msg(declaration: LayerDeclaration) -> Any:
     return LayerInfo(
         name=declaration.name,
         excludes=sorted(declaration.excludes),
-        requires=sorted(declaration.requires),
+        required=sorted(declaration.requires),
         group=declaration.group,
+        after=sorted(declaration.after),
     )
 
 
@@ -42,8 +43,9 @@ def declaration_from_msg(msg: Any) -> LayerDeclaration:
     return LayerDeclaration(
         name=msg.name,
         excludes=frozenset(msg.excludes),
-        requires=frozenset(msg.requires),
+        requires=frozenset(msg.required),
         group=msg.group,
+        after=frozenset(msg.after),
     )
 
 
@@ -84,6 +86,11 @@ def report_to_msg(report: ParticipantReport, wall_time: float) -> Any:
         leaving=report.leaving,
         stamp=seconds_to_stamp(wall_time),
         hosted_nodes=list(report.hosted),
+        manager_lost=report.manager_lost,
+        vote_epoch=report.vote_epoch,
+        vote_manager_id=report.vote_manager_id,
+        vote_yes=report.vote_yes,
+        vote_reason=report.vote_reason,
     )
 
 
@@ -101,6 +108,11 @@ def report_from_msg(msg: Any) -> ParticipantReport:
         error=msg.error,
         leaving=msg.leaving,
         hosted=tuple(msg.hosted_nodes),
+        manager_lost=msg.manager_lost,
+        vote_epoch=msg.vote_epoch,
+        vote_manager_id=msg.vote_manager_id,
+        vote_yes=msg.vote_yes,
+        vote_reason=msg.vote_reason,
     )
 
 
@@ -111,6 +123,9 @@ def command_to_request(
     timeout: float,
     requester: str,
     reason: str,
+    expect_nodes: Iterable[str] = (),
+    expect_count: int = 0,
+    atomic: bool = False,
 ) -> Any:
     return Activate.Request(
         activate=list(activate),
@@ -119,6 +134,9 @@ def command_to_request(
         timeout=float(timeout),
         requester=requester,
         reason=reason,
+        expect_nodes=list(expect_nodes),
+        expect_count=int(expect_count),
+        atomic=atomic,
     )
 
 
@@ -131,6 +149,9 @@ def command_from_request(request_id: int, request: Any) -> ActivationCommand:
         timeout=request.timeout,
         requester=request.requester,
         reason=request.reason,
+        expect_nodes=tuple(request.expect_nodes),
+        expect_count=request.expect_count,
+        atomic=request.atomic,
     )
 
 
@@ -173,9 +194,12 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
             silent_for=p.silent_for,
             lagging=p.lagging,
             hosted_nodes=list(p.hosted),
+            incarnation=p.incarnation,
+            conflict=p.conflict,
         )
         for p in view.participants
     ]
+    response.conflicts = list(view.conflicts)
     response.dropped = list(view.dropped)
     response.manager_id = manager_id
     response.recovering = view.recovering

@@ -33,17 +33,38 @@ from contextros.core import (
 from contextros.errors import LayerError, UnknownLayerError
 from contextros.protocol import (
     DEFAULT_HEARTBEAT_PERIOD,
+    DEFAULT_MANAGER_TIMEOUT,
     ApplyState,
     LayerDeclaration,
     LayerState,
+    ManagerFound,
+    ManagerLost,
     ParticipantAction,
     ParticipantProtocol,
     PublishStatus,
+    StateRejected,
 )
 from contextros.ros.messages import report_to_msg, state_from_msg
-from contextros.ros.topics import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC
+from contextros.ros.topics import (
+    HEARTBEAT_QOS,
+    HEARTBEAT_TOPIC,
+    PROPOSAL_QOS,
+    PROPOSAL_TOPIC,
+    STATE_QOS,
+    STATE_TOPIC,
+    STATUS_QOS,
+    STATUS_TOPIC,
+)
 
 StateListener = Callable[[LayerState], object]
+# Called with True when the manager is lost (not heard for the liveness bound), with False
+# when it is heard again. The node keeps its layers meanwhile; a listener may switch to a
+# safe configuration (with the core's `activate`/`set_active`: the next state from the
+# manager replaces it once the link is back).
+ManagerListener = Callable[[bool], object]
+# Asked about an atomic activation's proposed state: return why this node cannot apply it
+# ("" or None: it can). Runs in the executor; keep it short.
+Veto = Callable[[LayerState], "str | None"]
 
 
 def declaration_of(layer: Layer) -> LayerDeclaration:
@@ -52,6 +73,7 @@ def declaration_of(layer: Layer) -> LayerDeclaration:
         excludes=frozenset(layer.excludes),
         requires=frozenset(layer.requires),
         group=layer.group or "",
+        after=frozenset(layer.after),
     )
 
 
@@ -92,6 +114,7 @@ class ContextParticipant:
         layers: Iterable[Layer | str] | None = None,
         *,
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+        manager_timeout: float = DEFAULT_MANAGER_TIMEOUT,
     ) -> None:
         self.node = node
         declarations = declarations_of(layers)
@@ -102,9 +125,12 @@ class ContextParticipant:
             incarnation=f"{os.getpid()}-{uuid.uuid4().hex[:8]}",
             layers=declarations,
             heartbeat_period=heartbeat_period,
+            manager_timeout=manager_timeout,
         )
         self.state: LayerState | None = None
         self._listeners: list[StateListener] = []
+        self._manager_listeners: list[ManagerListener] = []
+        self._vetoes: list[Veto] = []
         # Deferred switches settle on whichever thread closes the critical section; they
         # are handed back to the executor through this guard condition.
         self._deferred: list[tuple[LayerState, SwitchResult]] = []
@@ -114,7 +140,17 @@ class ContextParticipant:
         self._state_sub = node.create_subscription(
             LayerStateMsg, STATE_TOPIC, self._on_state, STATE_QOS
         )
+        self._heartbeat_sub = node.create_subscription(
+            LayerStateMsg, HEARTBEAT_TOPIC, self._on_state, HEARTBEAT_QOS
+        )
+        self._proposal_sub = node.create_subscription(
+            LayerStateMsg, PROPOSAL_TOPIC, self._on_proposal, PROPOSAL_QOS
+        )
         self._heartbeat = node.create_timer(heartbeat_period, self._on_heartbeat)
+        # Repeats of a new report, shortly after it (a lossy link may have lost it); the
+        # timer runs only while repeats are due.
+        self._repeat_timer = node.create_timer(0.05, self._on_heartbeat)
+        self._repeat_timer.cancel()
         self._run(self.protocol.announce(time.monotonic()))
 
     @property
@@ -124,6 +160,23 @@ class ContextParticipant:
     def add_listener(self, listener: StateListener) -> None:
         """Call `listener(state)` in the executor after each state this node applied."""
         self._listeners.append(listener)
+
+    def add_manager_listener(self, listener: ManagerListener) -> None:
+        """Call `listener(lost)` in the executor when the manager is lost (True: not heard
+        for `manager_timeout`) or heard again (False)."""
+        self._manager_listeners.append(listener)
+
+    def add_veto(self, veto: Veto) -> None:
+        """Let `veto(state)` refuse an atomic activation's proposed state with a reason.
+
+        Besides, the node votes no while a critical section is open and when the proposed
+        layers break a relation it declares."""
+        self._vetoes.append(veto)
+
+    @property
+    def manager_lost(self) -> bool:
+        """This node has not heard the manager for its liveness bound."""
+        return self.protocol.manager_lost
 
     def host(self, node: Node, layers: Iterable[Layer | str] | None = None) -> None:
         """Speak for another node of this process too (its layers join the announced ones).
@@ -163,14 +216,30 @@ class ContextParticipant:
     def close(self) -> None:
         self.leave()
         self.node.destroy_timer(self._heartbeat)
+        self.node.destroy_timer(self._repeat_timer)
         self.node.destroy_subscription(self._state_sub)
+        self.node.destroy_subscription(self._heartbeat_sub)
+        self.node.destroy_subscription(self._proposal_sub)
         self.node.destroy_publisher(self._status_pub)
         self.node.destroy_guard_condition(self._settled)
 
     # -- executor callbacks -----------------------------------------------------------------
 
     def _on_state(self, msg: Any) -> None:
-        self._run(self.protocol.receive_state(state_from_msg(msg)))
+        self._run(self.protocol.receive_state(state_from_msg(msg), time.monotonic()))
+
+    def _on_proposal(self, msg: Any) -> None:
+        proposal = state_from_msg(msg)
+        reasons = []
+        for veto in list(self._vetoes):
+            try:
+                reason = veto(proposal)
+            except Exception as failure:  # a veto that fails says no
+                reason = f"veto {getattr(veto, '__name__', veto)!r} failed: {failure!r}"
+            if reason:
+                reasons.append(str(reason))
+        self.protocol.critical_section_open = in_critical_section()
+        self._run(self.protocol.receive_proposal(proposal, time.monotonic(), "; ".join(reasons)))
 
     def _on_heartbeat(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))
@@ -191,6 +260,34 @@ class ContextParticipant:
                 self._apply(action.state)
             elif isinstance(action, PublishStatus):
                 self._status_pub.publish(report_to_msg(action.report, time.time()))
+            elif isinstance(action, StateRejected):
+                self.node.get_logger().warning(
+                    f"ignored a layer state: {'; '.join(action.problems)}",
+                    throttle_duration_sec=10.0,
+                )
+            elif isinstance(action, ManagerLost | ManagerFound):
+                self._manager_changed(action)
+        # Wake up for the next repeat of a report, if one is due; else sleep.
+        if self.protocol.next_repeat is None:
+            if not self._repeat_timer.is_canceled():
+                self._repeat_timer.cancel()
+        elif self._repeat_timer.is_canceled():
+            self._repeat_timer.reset()
+
+    def _manager_changed(self, event: ManagerLost | ManagerFound) -> None:
+        lost = isinstance(event, ManagerLost)
+        if isinstance(event, ManagerLost):
+            self.node.get_logger().warning(
+                f"no Layer manager heard for {event.silent_for:.1f} s: keeping layers "
+                f"[{', '.join(self.protocol.active)}] (epoch {self.protocol.applied_epoch})"
+            )
+        else:
+            self.node.get_logger().info(f"Layer manager {event.manager_id} heard again")
+        for listener in list(self._manager_listeners):
+            try:
+                listener(lost)
+            except Exception as failure:  # a listener must not stop the node
+                self.node.get_logger().error(f"manager listener {listener!r} failed: {failure!r}")
 
     def _apply(self, state: LayerState) -> None:
         try:
@@ -252,19 +349,24 @@ class ContextNode(Node):
         *,
         layers: Iterable[Layer | str] | None = None,
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
+        manager_timeout: float = DEFAULT_MANAGER_TIMEOUT,
         share_participant: bool = True,
         **node_options: Any,
     ) -> None:
         super().__init__(node_name, **node_options)
         self._context_layers = None if layers is None else tuple(layers)
         self._heartbeat_period = heartbeat_period
+        self._manager_timeout = manager_timeout
         shared = _shared_participants.get(self.context) if share_participant else None
         if shared is not None:
             shared.host(self, self._context_layers)
             self.context_participant = shared
             return
         self.context_participant = ContextParticipant(
-            self, self._context_layers, heartbeat_period=heartbeat_period
+            self,
+            self._context_layers,
+            heartbeat_period=heartbeat_period,
+            manager_timeout=manager_timeout,
         )
         if share_participant:
             _shared_participants[self.context] = self.context_participant
@@ -291,9 +393,14 @@ def _hand_over(previous: ContextParticipant, hosted: list[ContextNode]) -> None:
     """The next context node of the process carries the shared participant from now on."""
     successor, *others = hosted
     participant = ContextParticipant(
-        successor, successor._context_layers, heartbeat_period=successor._heartbeat_period
+        successor,
+        successor._context_layers,
+        heartbeat_period=successor._heartbeat_period,
+        manager_timeout=successor._manager_timeout,
     )
     participant._listeners = previous._listeners
+    participant._manager_listeners = previous._manager_listeners
+    participant._vetoes = previous._vetoes
     for node in others:
         participant.host(node, node._context_layers)
     for node in hosted:

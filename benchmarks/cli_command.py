@@ -1,0 +1,111 @@
+"""A CLI client command on a running system, from process start to exit (issue 12).
+
+Set-up: the Layer manager (`contextros manager`) and one process with a context node
+(the cleaner's Indoor/Outdoor layers, as in the activation benchmark) run in a domain of
+their own. Each sample starts a fresh `python -m contextros activate Indoor|Outdoor --sync`
+and measures the wall time until that process exits: interpreter start, imports, ROS
+start-up, discovery of the manager's service, the synchronous activation and shutdown.
+For reference, `python -m contextros --version` (interpreter start and the package's own
+imports only) is measured in the same rounds.
+"""
+
+from __future__ import annotations
+
+import os
+import statistics
+import subprocess
+import sys
+import time
+from typing import Any
+
+from benchmarks.activation import BENCH_DOMAIN_ID, _wait_for_lines
+
+ROUNDS = 20
+TARGET_P90_S = 1.0
+COMMAND = "contextros activate LAYER --sync"
+VERSION = "contextros --version"
+
+
+def _run(arguments: list[str], env: dict[str, str]) -> tuple[float, int, str]:
+    started = time.perf_counter()
+    done = subprocess.run(
+        [sys.executable, "-m", "contextros", *arguments],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    return time.perf_counter() - started, done.returncode, done.stderr.strip()
+
+
+def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
+    from examples.launch import Launch, ros_environment
+
+    domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID)) + 1
+    env = ros_environment(domain)
+    samples: dict[str, list[float]] = {COMMAND: [], VERSION: []}
+    failures = 0
+    load_before = os.getloadavg()[0]
+    with Launch(domain, grace=5.0) as launch:
+        launch.start_module("manager", "contextros", "manager", "--recovery-window", "0.3")
+        launch.start_module("worker", "benchmarks.activation", "worker", "bench_cli_node")
+        _wait_for_lines(launch, "ready", 1)
+        # Until the manager knows the node (its first states are recovery).
+        for _ in range(50):
+            _, status, _ = _run(["activate", "Indoor", "--sync", "--timeout", "5"], env)
+            if status == 0:
+                break
+            time.sleep(0.2)
+        layer = "Outdoor"
+        for _ in range(rounds):
+            elapsed, status, error = _run(["activate", layer, "--sync", "--timeout", "5"], env)
+            if status == 0:
+                samples[COMMAND].append(elapsed)
+            else:
+                failures += 1
+                print(f"  cli: exit {status}: {error}", file=sys.stderr, flush=True)
+            layer = "Indoor" if layer == "Outdoor" else "Outdoor"
+            samples[VERSION].append(_run(["--version"], env)[0])
+    rows = []
+    for case, values in samples.items():
+        ordered = sorted(values)
+        rows.append(
+            {
+                "case": case,
+                "samples": len(ordered),
+                "failed": failures if case == COMMAND else 0,
+                "median_s": statistics.median(ordered) if ordered else float("nan"),
+                "p90_s": ordered[int(0.9 * (len(ordered) - 1))] if ordered else float("nan"),
+                "max_s": ordered[-1] if ordered else float("nan"),
+                "load": (load_before, os.getloadavg()[0]),
+            }
+        )
+    return rows
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    lines = [
+        "| command (new process each time) | median [s] | p90 [s] | max [s] | samples | failed "
+        "| target |",
+        "|---|---:|---:|---:|---:|---:|---|",
+    ]
+    for row in rows:
+        target = ""
+        if row["case"] == COMMAND:
+            met = row["p90_s"] <= TARGET_P90_S
+            target = f"p90 <= {TARGET_P90_S:g} s: {'met' if met else 'MISSED'}"
+        lines.append(
+            f"| `{row['case']}` | {row['median_s']:.3f} | {row['p90_s']:.3f} | "
+            f"{row['max_s']:.3f} | {row['samples']} | {row['failed']} | {target} |"
+        )
+    before, after = rows[0]["load"]
+    lines += [
+        "",
+        f"Load average (1 min) at the start and end: {before:.1f} and {after:.1f}, on 2 "
+        "cores shared with other jobs.",
+    ]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    print(markdown(run()))

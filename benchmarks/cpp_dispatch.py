@@ -1,0 +1,192 @@
+"""C++ dispatch: a call of a layered function generated from a C++ layer file
+(cpp/core/benchmarks/dispatch.cpp.layers: one atomic load and one indirect call, rewired per
+configuration) against a plain out-of-line call and against the paper's Listing 2 dispatch
+(an if/else over the active layers on every call, here extended with proceed). Same
+workload as the Python table: `x + 1`, each partial adding its own `+ 1`; each call depends
+on the previous result. Built by cmake (`-O2`), run by `cpp/core/benchmarks/
+dispatch_benchmark.cpp`, calling each function directly as a program does: all cases in the
+same short interleaved rounds (101 x 200,000 calls), eight runs at different stack offsets.
+ns per call and "x plain" come from the fastest rounds, as in the other tables; the median
+column is the typical round's ratio to the plain call measured next to it (median over the
+eight runs, their range in brackets).
+
+Run alone with `python -m benchmarks.cpp_dispatch` (rewrites only this section).
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+TITLE = "C++ dispatch: generated layered calls vs a plain call vs Listing 2 (issue 9)"
+TARGET = "layered: one partial, no proceed"
+TARGET_RATIO = 1.3
+SCOPED = "layered: one partial, no proceed, scoped (ScopedActivation)"
+PLAIN = "plain out-of-line call"
+POINTER = "atomic function pointer: one partial, no proceed"
+EXECUTABLE = "contextros_dispatch_benchmark"
+
+
+def _tool(name: str) -> str:
+    found = shutil.which(name) or shutil.which(name, path=str(Path(sys.executable).parent))
+    if found is None:
+        raise RuntimeError(f"{name} not found: install it (or the {name} wheel)")
+    return found
+
+
+def build() -> Path:
+    """The benchmark executable: from `make cpp`'s build (build/cpp) when there is one, else
+    a standalone Release build of the runtime (build/cpp-core-bench)."""
+    cmake = _tool("cmake")
+    shared = ROOT / "build" / "cpp"
+    if (shared / "build.ninja").exists():
+        build_dir = shared
+    else:
+        build_dir = ROOT / "build" / "cpp-core-bench"
+        compiler = Path(sys.executable).parent / "contextros"
+        subprocess.run(
+            [cmake, "-S", str(ROOT / "cpp" / "core"), "-B", str(build_dir), "-G", "Ninja",
+             "-DCMAKE_BUILD_TYPE=Release", "-DCONTEXTROS_CORE_TESTS=OFF",
+             f"-DCONTEXTROS_COMPILER={compiler}"],
+            check=True, capture_output=True, text=True,
+        )  # fmt: skip
+    subprocess.run(
+        [cmake, "--build", str(build_dir), "--target", EXECUTABLE, "--parallel", "2"],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
+    found = sorted(build_dir.rglob(EXECUTABLE))
+    found = [path for path in found if path.is_file() and os.access(path, os.X_OK)]
+    if not found:
+        raise RuntimeError(f"{EXECUTABLE} was not built in {build_dir}")
+    return found[0]
+
+
+# Environment padding moves the stack: on the measured AMD EPYC the same code costs one or
+# three cycles more than a plain call depending on the stack's alignment (see the notes).
+STACK_OFFSETS = range(0, 64, 8)
+
+
+def run() -> list[dict[str, Any]]:
+    executable = build()
+    runs: dict[str, list[tuple[float, float]]] = {}
+    for offset in STACK_OFFSETS:
+        environment = {**os.environ, "CONTEXTROS_BENCH_PAD": "x" * offset}
+        output = subprocess.run(
+            [str(executable), "200000", "101"],
+            check=True,
+            capture_output=True,
+            text=True,
+            timeout=600,
+            env=environment,
+        ).stdout
+        for line in output.strip().splitlines():
+            case, ns, ratio = line.split("\t")
+            runs.setdefault(case, []).append((float(ns), float(ratio)))
+    rows: list[dict[str, Any]] = []
+    plain = min(ns for ns, _ in runs[PLAIN])
+    for case, results in runs.items():
+        ratios = sorted(ratio for _, ratio in results)
+        rows.append(
+            {
+                "case": case,
+                "ns": min(ns for ns, _ in results),
+                "fastest": min(ns for ns, _ in results) / plain,
+                "ratio": statistics.median(ratios),
+                "best": ratios[0],
+                "worst": ratios[-1],
+            }
+        )
+    return rows
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    by_case = {row["case"]: row for row in rows}
+
+    def cell(case: str) -> str:
+        row = by_case[case]
+        return (
+            f"{row['ns']:.2f} | {row['fastest']:.2f} | "
+            f"{row['ratio']:.2f} ({row['best']:.2f}-{row['worst']:.2f})"
+        )
+
+    lines = [
+        "| active layers | layered ns | x plain | x plain, median (range) | Listing 2 if/else ns "
+        "| x plain | x plain, median (range) |",
+        "|---|---:|---:|---:|---:|---:|---:|",
+    ]
+    cases = ["no active layer", "one partial, no proceed", "one partial, proceeds"]
+    cases.append("three partials, proceed")
+    for case in cases:
+        lines.append(
+            f"| {case} | {cell('layered: ' + case)} | {cell('if/else (Listing 2): ' + case)} |"
+        )
+    lines += [
+        f"| one partial, no proceed, scoped (`ScopedActivation`) | {cell(SCOPED)} | | | |",
+        f"| plain out-of-line call | {cell(PLAIN)} | | | |",
+        f"| atomic function pointer (one load, one indirect call) | {cell(POINTER)} | | | |",
+    ]
+    row = by_case[TARGET]
+    fastest = "met" if row["fastest"] <= TARGET_RATIO else "MISSED"
+    typical = "met" if row["ratio"] <= TARGET_RATIO else "missed"
+    per_proceed = (by_case["layered: three partials, proceed"]["ns"] - row["ns"]) / 3
+    lines += [
+        "",
+        '"x plain" compares the fastest rounds, as every table of this page does; the median '
+        "is the typical round's ratio to the plain call measured next to it (median over "
+        f"{len(STACK_OFFSETS)} stack offsets, range in brackets).",
+        "",
+        f"Target: a layered call with one active partial and no proceed costs at most "
+        f"{TARGET_RATIO}x a plain out-of-line call: {row['fastest']:.2f}x in the fastest rounds, "
+        f"{fastest}; the typical round's {row['ratio']:.2f}x is {typical}.",
+        "",
+        "The ratios come in steps of one cycle: on this machine (AMD EPYC) the plain call loop "
+        "takes four cycles per call, and a call through a code pointer loaded from memory one "
+        "to three more, from round to round and with the stack's alignment (the environment's "
+        "size moves it). The atomic function pointer row (one load, one indirect jump) is the "
+        "floor of any dispatch rewired at run time; the layered call's second, dependent load "
+        "(the head of the chain, then its function) is what it adds to that floor.",
+        "",
+        "Listing 2's if/else is as cheap as a plain call in this loop: its per-layer functions "
+        "sit in the dispatch function's translation unit, so the compiler inlines them into the "
+        "if/else, and the branch predictor always knows which layer is active. It tests the "
+        "layers on every call and fixes the proceed order at compile time, so it cannot follow "
+        "an arbitrary activation order, per-thread scoped activation, or a switch made while "
+        "calls run. The layered call's chain is chosen at run time and cannot be inlined: each "
+        f"proceed is one more indirect call, {per_proceed:.1f} ns here.",
+    ]
+    return "\n".join(lines)
+
+
+def splice(section: str, path: Path = DOCS / "benchmarks.md") -> None:
+    """Put this section into docs/benchmarks.md in place of its previous version."""
+    text = path.read_text() if path.exists() else "# Benchmarks\n"
+    heading = f"## {TITLE}"
+    start = text.find(heading)
+    block = f"{heading}\n\n{section}\n\n"
+    if start < 0:
+        footer = text.rfind("\n_Total benchmark time")
+        at = footer + 1 if footer >= 0 else len(text)
+        text = text[:at] + block + text[at:]
+    else:
+        end = text.find("\n## ", start + len(heading))
+        footer = text.find("\n_Total benchmark time", start)
+        stops = [i for i in (end, footer) if i >= 0]
+        stop = min(stops) + 1 if stops else len(text)
+        text = text[:start] + block + text[stop:]
+    path.write_text(text)
+
+
+if __name__ == "__main__":
+    rows = run()
+    table = markdown(rows)
+    print(table)
+    splice(f"{(__doc__ or '').strip()}\n\n{table}")

@@ -1,0 +1,19 @@
+// What a layered call is compared with: a plain out-of-line call, and the paper's
+// Listing 2 dispatch (an if/else over the active layers on every call), extended with
+// proceed. Defined in their own translation unit, like the generated dispatch functions.
+#pragma once
+
+namespace baseline {
+
+int plain(int x);
+
+// The least any rewired dispatch can cost: one atomic load of a function pointer and an
+// indirect call of it (no proceed, no chain; installed by set_active below).
+int pointer_call(int x);
+
+// Listing 2: which layers are active, tested on every call (newest first).
+void set_active(bool l1, bool l2, bool l3);
+int if_else_step(int x);    // partials proceed: L3 -> L2 -> L1 -> base
+int if_else_single(int x);  // one partial that does not proceed
+
+}  // namespace baseline

@@ -1,0 +1,29 @@
+// Layers as values: a name and its relations, registered process-wide.
+#pragma once
+
+#include <string>
+#include <vector>
+
+namespace contextros {
+
+// A layer as declared, with its relations (the same rules as the Python core's Layer).
+struct LayerInfo {
+  std::string name;
+  std::vector<std::string> excludes;  // never active together with these (symmetric)
+  std::vector<std::string> required;  // only active while these are ('requires' is a C++20 keyword)
+  std::vector<std::string> after;     // when both are active, this one was activated later
+  std::string group;                  // an exclusive group; "" = none
+};
+
+bool operator==(const LayerInfo& a, const LayerInfo& b);
+inline bool operator!=(const LayerInfo& a, const LayerInfo& b) { return !(a == b); }
+
+// Registers (or replaces: the latest definition of a name wins) a layer in this process.
+// Throws LayerDefinitionError for an inconsistent declaration. Generated code calls this at
+// static initialisation for every layer of its layer file.
+void define_layer(const LayerInfo& layer);
+
+// Every layer defined in this process (the current definition of each name), by name.
+std::vector<LayerInfo> defined_layers();
+
+}  // namespace contextros

@@ -1,0 +1,405 @@
+// The process-wide runtime: layer definitions, the decisive configuration and its epoch,
+// critical sections, observers, per-thread scopes and the layered functions to rewire.
+//
+// One recursive lock serialises switches (observers may switch again from their callback, as
+// in the Python core); calls on the fast path never take it.
+
+#include <algorithm>
+#include <atomic>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <utility>
+
+#include "configuration.hpp"
+#include "contextros/activation.hpp"
+#include "contextros/errors.hpp"
+#include "contextros/layer.hpp"
+#include "contextros/layered.hpp"
+
+namespace contextros {
+namespace detail {
+namespace {
+
+using Plan = std::function<Configuration(const Configuration&)>;
+
+struct Pending {
+  Plan plan;
+  SwitchCallback on_settled;
+};
+
+struct Settled {
+  SwitchCallback on_settled;
+  SwitchOutcome outcome;
+};
+
+// The scoped activations of the calling thread, and the chain heads composed for them.
+struct ThreadScopes {
+  std::vector<Step> steps;
+  std::uint64_t generation = 0;  // of `effective`; 0 = stale
+  Configuration effective;
+  struct Cached {
+    std::uint64_t generation;
+    const void* head;
+  };
+  std::map<const LayeredBase*, Cached> heads;  // valid for `generation` only
+};
+
+thread_local ThreadScopes thread_scopes;
+
+class Runtime {
+ public:
+  static Runtime& instance() {
+    static Runtime runtime;
+    return runtime;
+  }
+
+  std::recursive_mutex mutex;
+  std::map<std::string, LayerInfo> layers;
+  Configuration active;
+  std::uint64_t epoch = 0;
+  // Bumped on every change of the decisive configuration or the layer definitions: thread
+  // scopes recompute then. Read without the lock by the scoped call path.
+  std::atomic<std::uint64_t> generation{1};
+  std::vector<LayeredBase*> functions;
+  std::atomic<int> critical_depth{0};
+  std::deque<Pending> deferred;
+  std::map<std::uint64_t, std::function<void(const SwitchEvent&)>> observers;
+  std::uint64_t next_observer = 1;
+  int live_scopes = 0;
+
+  Definitions definitions() {
+    return [this](const std::string& name) {
+      auto found = layers.find(name);
+      return found != layers.end() ? found->second : LayerInfo{name, {}, {}, {}, {}};
+    };
+  }
+
+  void rewire_all() {
+    for (LayeredBase* function : functions) function->rewire(active, live_scopes > 0);
+  }
+
+  // Applies `plan` now (lock held); the outcome says what became of it.
+  SwitchOutcome apply(const Plan& plan) {
+    Configuration next;
+    try {
+      next = plan(active);
+    } catch (const LayerError& error) {
+      return {SwitchStatus::failed, epoch, error.what()};
+    }
+    if (next == active) return {SwitchStatus::applied, epoch, ""};
+    SwitchEvent event{epoch + 1, active, next};
+    active = std::move(next);
+    ++epoch;
+    ++generation;
+    rewire_all();
+    // Copied: an observer may unsubscribe (itself or another) from its callback.
+    auto current = observers;
+    for (auto& [id, observer] : current) {
+      try {
+        observer(event);
+      } catch (...) {  // a failing observer must not undo or block the switch
+      }
+    }
+    return {SwitchStatus::applied, epoch, ""};
+  }
+
+  SwitchOutcome request(Plan plan, SwitchCallback on_settled) {
+    SwitchOutcome outcome;
+    {
+      std::lock_guard<std::recursive_mutex> lock(mutex);
+      if (critical_depth.load() > 0) {
+        deferred.push_back({std::move(plan), std::move(on_settled)});
+        return {SwitchStatus::deferred, epoch, ""};
+      }
+      outcome = apply(plan);
+    }
+    if (on_settled) on_settled(outcome);
+    return outcome;
+  }
+
+  // The thread's configuration (lock held), recomputed when stale.
+  const Configuration& effective(ThreadScopes& scopes) {
+    const std::uint64_t now = generation.load();
+    if (scopes.generation != now) {
+      scopes.effective = replay(active, scopes.steps, definitions());
+      scopes.generation = now;
+      scopes.heads.clear();
+    }
+    return scopes.effective;
+  }
+};
+
+std::vector<std::string> checked_names(const std::vector<std::string>& names) {
+  for (const auto& name : names) {
+    if (!is_identifier(name)) {
+      throw LayerDefinitionError("'" + name + "' is not a layer name (an identifier)");
+    }
+  }
+  return names;
+}
+
+}  // namespace
+
+LayeredBase::~LayeredBase() {
+  if (!enrolled_) return;
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  auto& functions = runtime.functions;
+  functions.erase(std::remove(functions.begin(), functions.end(), this), functions.end());
+  ++runtime.generation;  // no thread's cache may hand out this function's chains again
+}
+
+void LayeredBase::enroll() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.functions.push_back(this);
+  enrolled_ = true;
+  rewire(runtime.active, runtime.live_scopes > 0);
+}
+
+const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose) {
+  ThreadScopes& scopes = thread_scopes;
+  if (scopes.steps.empty()) return decisive;
+  Runtime& runtime = Runtime::instance();
+  const std::uint64_t generation = runtime.generation.load(std::memory_order_acquire);
+  if (scopes.generation == generation) {
+    auto cached = scopes.heads.find(&function);
+    if (cached != scopes.heads.end() && cached->second.generation == generation) {
+      return cached->second.head;
+    }
+  }
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  const Configuration& layers = runtime.effective(scopes);
+  const void* head = compose(function, layers);
+  scopes.heads[&function] = {scopes.generation, head};
+  return head;
+}
+
+void throw_no_implementation(const std::string& function) {
+  std::string active;
+  for (const auto& name : effective_layers()) active += (active.empty() ? "" : ", ") + name;
+  throw NoImplementationError(function + " has no base implementation and no active layer " +
+                              "refines it (active layers: " + (active.empty() ? "none" : active) +
+                              ")");
+}
+
+void throw_proceed_past_end(const std::string& function, const char* layer) {
+  throw ProceedError("proceed() in " + function +
+                     (layer && *layer ? " of layer " + std::string(layer) : std::string(" base")) +
+                     " has no next implementation (no base, or called from the base)");
+}
+
+}  // namespace detail
+
+using detail::Runtime;
+
+bool operator==(const LayerInfo& a, const LayerInfo& b) {
+  return a.name == b.name && a.excludes == b.excludes && a.required == b.required &&
+         a.after == b.after && a.group == b.group;
+}
+
+void define_layer(const LayerInfo& layer) {
+  if (!detail::is_identifier(layer.name)) {
+    throw LayerDefinitionError("layer name '" + layer.name + "' is not an identifier");
+  }
+  if (!layer.group.empty() && !detail::is_identifier(layer.group)) {
+    throw LayerDefinitionError("layer " + layer.name + ": group '" + layer.group +
+                               "' is not an identifier");
+  }
+  for (const auto* relation : {&layer.excludes, &layer.required, &layer.after}) {
+    for (const auto& name : *relation) {
+      if (!detail::is_identifier(name)) {
+        throw LayerDefinitionError("layer " + layer.name + ": '" + name + "' is not a layer name");
+      }
+      if (name == layer.name) {
+        throw LayerDefinitionError("layer " + layer.name + " cannot name itself in a relation");
+      }
+    }
+  }
+  for (const auto& name : layer.required) {
+    if (std::find(layer.excludes.begin(), layer.excludes.end(), name) != layer.excludes.end()) {
+      throw LayerDefinitionError("layer " + layer.name + " both requires and excludes " + name);
+    }
+  }
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.layers[layer.name] = layer;
+  ++runtime.generation;  // group membership may change what scopes replay to
+}
+
+std::vector<LayerInfo> defined_layers() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  std::vector<LayerInfo> result;
+  for (const auto& [name, layer] : runtime.layers) result.push_back(layer);
+  return result;
+}
+
+std::vector<std::string> active_layers() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  return runtime.active;
+}
+
+std::vector<std::string> effective_layers() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  if (detail::thread_scopes.steps.empty()) return runtime.active;
+  return runtime.effective(detail::thread_scopes);
+}
+
+std::uint64_t current_epoch() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  return runtime.epoch;
+}
+
+bool in_critical_section() { return Runtime::instance().critical_depth.load() > 0; }
+
+SwitchOutcome set_active(const std::vector<std::string>& layers, SwitchCallback on_settled) {
+  Runtime& runtime = Runtime::instance();
+  return runtime.request(
+      [&runtime, layers](const detail::Configuration&) {
+        detail::Configuration wanted = detail::checked_names(layers);
+        detail::validate(wanted, runtime.definitions());
+        return wanted;
+      },
+      std::move(on_settled));
+}
+
+SwitchOutcome activate(std::string_view layer, SwitchCallback on_settled) {
+  Runtime& runtime = Runtime::instance();
+  std::string name(layer);
+  return runtime.request(
+      [&runtime, name](const detail::Configuration& current) {
+        return detail::plan(current, detail::checked_names({name}), {}, runtime.definitions());
+      },
+      std::move(on_settled));
+}
+
+SwitchOutcome deactivate(std::string_view layer, SwitchCallback on_settled) {
+  Runtime& runtime = Runtime::instance();
+  std::string name(layer);
+  return runtime.request(
+      [&runtime, name](const detail::Configuration& current) {
+        return detail::plan(current, {}, detail::checked_names({name}), runtime.definitions());
+      },
+      std::move(on_settled));
+}
+
+std::vector<std::string> activation_order(const std::vector<std::string>& layers) {
+  std::vector<std::string> wanted;
+  for (const auto& name : layers) {
+    if (std::find(wanted.begin(), wanted.end(), name) == wanted.end()) wanted.push_back(name);
+  }
+  std::map<std::string, std::vector<std::string>> must_follow;
+  {
+    Runtime& runtime = Runtime::instance();
+    std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+    const auto definitions = runtime.definitions();
+    for (const auto& name : wanted) {
+      for (const auto& earlier : definitions(name).after) {
+        if (std::find(wanted.begin(), wanted.end(), earlier) != wanted.end()) {
+          must_follow[name].push_back(earlier);
+        }
+      }
+    }
+  }
+  std::vector<std::string> ordered;
+  std::vector<std::string> remaining = wanted;
+  while (!remaining.empty()) {
+    auto ready = std::find_if(remaining.begin(), remaining.end(), [&](const std::string& name) {
+      for (const auto& earlier : must_follow[name]) {
+        if (std::find(ordered.begin(), ordered.end(), earlier) == ordered.end()) return false;
+      }
+      return true;
+    });
+    if (ready == remaining.end()) {
+      std::string names;
+      for (const auto& name : remaining) names += (names.empty() ? "" : ", ") + name;
+      throw RelationError("the declared 'after' orders of " + names + " form a cycle", remaining);
+    }
+    ordered.push_back(*ready);
+    remaining.erase(ready);
+  }
+  return ordered;
+}
+
+Subscription subscribe(std::function<void(const SwitchEvent&)> observer) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  const std::uint64_t id = runtime.next_observer++;
+  runtime.observers.emplace(id, std::move(observer));
+  return Subscription(id);
+}
+
+Subscription& Subscription::operator=(Subscription&& other) noexcept {
+  if (this != &other) {
+    reset();
+    id_ = std::exchange(other.id_, 0);
+  }
+  return *this;
+}
+
+Subscription::~Subscription() { reset(); }
+
+void Subscription::reset() {
+  if (!id_) return;
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.observers.erase(std::exchange(id_, 0));
+}
+
+CriticalSection::CriticalSection() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.critical_depth.fetch_add(1);
+}
+
+CriticalSection::~CriticalSection() {
+  Runtime& runtime = Runtime::instance();
+  std::vector<detail::Settled> settled;
+  {
+    std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+    if (runtime.critical_depth.fetch_sub(1) != 1) return;
+    while (!runtime.deferred.empty() && runtime.critical_depth.load() == 0) {
+      detail::Pending pending = std::move(runtime.deferred.front());
+      runtime.deferred.pop_front();
+      settled.push_back({std::move(pending.on_settled), runtime.apply(pending.plan)});
+    }
+  }
+  for (auto& item : settled) {
+    if (!item.on_settled) continue;
+    try {
+      item.on_settled(item.outcome);
+    } catch (...) {  // a destructor must not throw; the switch itself is settled
+    }
+  }
+}
+
+ScopedActivation::ScopedActivation(std::string_view layer) : ScopedActivation(layer, true) {}
+
+ScopedActivation::ScopedActivation(std::string_view layer, bool activating) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  auto& scopes = detail::thread_scopes;
+  std::vector<detail::Step> steps = scopes.steps;
+  steps.push_back({activating, detail::checked_names({std::string(layer)}).front()});
+  detail::validate(detail::replay(runtime.active, steps, runtime.definitions()),
+                   runtime.definitions());
+  scopes.steps = std::move(steps);
+  scopes.generation = 0;
+  if (++runtime.live_scopes == 1) runtime.rewire_all();
+}
+
+ScopedActivation::~ScopedActivation() {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  auto& scopes = detail::thread_scopes;
+  if (!scopes.steps.empty()) scopes.steps.pop_back();
+  scopes.generation = 0;
+  if (--runtime.live_scopes == 0) runtime.rewire_all();
+}
+
+}  // namespace contextros

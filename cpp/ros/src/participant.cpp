@@ -1,0 +1,606 @@
+// The rcl adapter around ParticipantProtocol: translates messages, runs the participant's
+// thread (one wait set: the state subscription and a guard condition), calls the runtime.
+#include "contextros/ros/participant.hpp"
+
+#include <rcl/rcl.h>
+#include <rcutils/logging_macros.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <contextros/activation.hpp>
+#include <contextros_interfaces/msg/layer_state.hpp>
+#include <contextros_interfaces/msg/participant_status.hpp>
+#include <cstdio>
+#include <mutex>
+#include <random>
+#include <thread>
+#include <utility>
+
+#include "contextros/ros/topics.hpp"
+#include "contextros/ros/rcl_handles.hpp"
+#include "rosidl_typesupport_cpp/message_type_support.hpp"
+
+namespace contextros::ros {
+
+namespace msg = contextros_interfaces::msg;
+
+// -- QoS (docs/protocol.md) ---------------------------------------------------------------
+
+rmw_qos_profile_t state_qos() {
+  rmw_qos_profile_t qos = rmw_qos_profile_default;
+  qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
+  qos.depth = 1;
+  qos.reliability = RMW_QOS_POLICY_RELIABILITY_RELIABLE;
+  qos.durability = RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL;
+  return qos;
+}
+
+rmw_qos_profile_t heartbeat_qos() {
+  rmw_qos_profile_t qos = rmw_qos_profile_default;
+  qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
+  qos.depth = 1;
+  qos.reliability = RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT;
+  qos.durability = RMW_QOS_POLICY_DURABILITY_VOLATILE;
+  return qos;
+}
+
+rmw_qos_profile_t proposal_qos() { return heartbeat_qos(); }
+
+rmw_qos_profile_t status_qos() {
+  rmw_qos_profile_t qos = rmw_qos_profile_default;
+  qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
+  qos.depth = 100;
+  qos.reliability = RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT;
+  qos.durability = RMW_QOS_POLICY_DURABILITY_VOLATILE;
+  return qos;
+}
+
+namespace {
+
+// -- messages <-> protocol values (the twin of src/contextros/ros/messages.py) -----------
+
+std::vector<std::string> sorted(std::vector<std::string> names) {
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
+msg::LayerInfo layer_to_msg(const LayerInfo& layer) {
+  msg::LayerInfo info;
+  info.name = layer.name;
+  info.excludes = sorted(layer.excludes);
+  info.required = sorted(layer.required);
+  info.after = sorted(layer.after);
+  info.group = layer.group;
+  return info;
+}
+
+LayerState state_from_msg(const msg::LayerState& state) {
+  return LayerState{state.epoch,      state.active_layers, state.requester, state.reason,
+                    state.manager_id, state.stamp.sec + state.stamp.nanosec * 1e-9};
+}
+
+msg::ParticipantStatus report_to_msg(const ParticipantReport& report) {
+  msg::ParticipantStatus status;
+  status.node = report.node;
+  status.incarnation = report.incarnation;
+  for (const LayerInfo& layer : report.layers) {
+    status.layers.push_back(layer_to_msg(layer));
+  }
+  status.applied_epoch = report.applied_epoch;
+  status.applied_manager_id = report.applied_manager_id;
+  status.active_layers = report.active;
+  status.in_critical_section = report.in_critical_section;
+  status.pending_epoch = report.pending_epoch;
+  status.failed_epoch = report.failed_epoch;
+  status.error = report.error;
+  status.leaving = report.leaving;
+  const auto since_epoch = std::chrono::system_clock::now().time_since_epoch();
+  const auto seconds = std::chrono::duration_cast<std::chrono::seconds>(since_epoch);
+  status.stamp.sec = static_cast<std::int32_t>(seconds.count());
+  status.stamp.nanosec = static_cast<std::uint32_t>(
+      std::chrono::duration_cast<std::chrono::nanoseconds>(since_epoch - seconds).count());
+  status.hosted_nodes = report.hosted;
+  status.manager_lost = report.manager_lost;
+  status.vote_epoch = report.vote_epoch;
+  status.vote_manager_id = report.vote_manager_id;
+  status.vote_yes = report.vote_yes;
+  status.vote_reason = report.vote_reason;
+  return status;
+}
+
+std::string new_incarnation() {
+  std::random_device random;
+  char suffix[9];
+  std::snprintf(suffix, sizeof suffix, "%08x", static_cast<unsigned>(random()));
+  return std::to_string(::getpid()) + "-" + suffix;
+}
+
+// The declarations of `names` as defined in this process (by default every defined layer).
+std::vector<LayerInfo> declarations_of(const std::optional<std::vector<std::string>>& names) {
+  std::vector<LayerInfo> defined = defined_layers();
+  if (!names) {
+    return defined;
+  }
+  std::vector<LayerInfo> chosen;
+  for (const std::string& name : *names) {
+    auto found = std::find_if(defined.begin(), defined.end(),
+                              [&](const LayerInfo& layer) { return layer.name == name; });
+    if (found == defined.end()) {
+      throw ParticipantError("layer '" + name +
+                             "' is not defined in this process: link its layer file, or "
+                             "leave it out of ParticipantOptions::layers");
+    }
+    chosen.push_back(*found);
+  }
+  return chosen;
+}
+
+}  // namespace
+
+// -- the participant ------------------------------------------------------------------------
+
+// Switches the runtime settled, handed to the participant's thread from whichever thread
+// settled them (the one that closed a critical section).
+class Inbox {
+ public:
+  using Settled = std::pair<LayerState, SwitchOutcome>;
+  explicit Inbox(RclGuardCondition& wake) : wake_(&wake) {}
+  void post(const LayerState& state, const SwitchOutcome& outcome) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (wake_ != nullptr) {
+      settled_.emplace_back(state, outcome);
+      wake_->trigger();
+    }
+  }
+  std::vector<Settled> take() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::exchange(settled_, {});
+  }
+  void close() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    wake_ = nullptr;
+  }
+
+ private:
+  std::mutex mutex_;
+  RclGuardCondition* wake_;  // not owned; null once the participant is gone
+  std::vector<Settled> settled_;
+};
+
+struct Participant::Impl {
+  Impl(rcl_node_t& node, const ParticipantOptions& options)
+      : node(node),
+        own_layers(declarations_of(options.layers)),
+        protocol(rcl_node_get_fully_qualified_name(&node), new_incarnation(), own_layers,
+                 options.heartbeat_period, options.manager_timeout),
+        status_publisher(node, type_support<msg::ParticipantStatus>(), status_topic, status_qos()),
+        state_subscription(node, type_support<msg::LayerState>(), state_topic, state_qos()),
+        heartbeat_subscription(node, type_support<msg::LayerState>(), heartbeat_topic,
+                               heartbeat_qos()),
+        proposal_subscription(node, type_support<msg::LayerState>(), proposal_topic,
+                              proposal_qos()),
+        wake(node.context),
+        wait_set(node.context, 3, 1),
+        inbox(std::make_shared<Inbox>(wake)) {}
+
+  ~Impl() { inbox->close(); }
+
+  // Runs the protocol's actions; called with `mutex` held.
+  void run(const ParticipantActions& actions) {
+    for (const ParticipantAction& action : actions) {
+      if (const auto* apply = std::get_if<ApplyState>(&action)) {
+        this->apply(apply->state);
+      } else if (const auto* publish = std::get_if<PublishStatus>(&action)) {
+        // A failure is repeated by the next heartbeat.
+        status_publisher.publish(report_to_msg(publish->report));
+      } else if (const auto* rejected = std::get_if<StateRejected>(&action)) {
+        log_rejected(*rejected);
+      } else if (const auto* lost = std::get_if<ManagerLost>(&action)) {
+        const double seconds = std::chrono::duration<double>(lost->silent_for).count();
+        std::string active;
+        for (const std::string& layer : protocol.report().active) {
+          active += (active.empty() ? "" : ", ") + layer;
+        }
+        RCUTILS_LOG_WARN_NAMED(logger, "no Layer manager heard for %.1f s: keeping layers [%s] "
+                               "(epoch %llu)", seconds, active.c_str(),
+                               static_cast<unsigned long long>(protocol.applied_epoch()));
+        manager_changes.push_back(true);
+      } else if (const auto* found = std::get_if<ManagerFound>(&action)) {
+        RCUTILS_LOG_INFO_NAMED(logger, "Layer manager %s heard again", found->manager_id.c_str());
+        manager_changes.push_back(false);
+      }
+    }
+  }
+
+  void event(const std::function<ParticipantActions()>& happen) {
+    std::lock_guard<std::mutex> lock(mutex);
+    protocol.set_critical_section_open(in_critical_section());
+    run(happen());
+  }
+
+  void apply(const LayerState& state) {
+    // A deferred switch may settle after this participant is gone: the callback holds the
+    // inbox, not the participant.
+    std::shared_ptr<Inbox> box = inbox;
+    const SwitchOutcome outcome = set_active(state.active, [box, state](const SwitchOutcome& done) {
+      box->post(state, done);  // on this thread, or on the one closing the critical section
+    });
+    if (outcome.status == SwitchStatus::deferred) {
+      run(protocol.deferred(state, Clock::now()));
+    }
+  }
+
+  // Reports the switches the runtime settled since the last call; returns the applied ones.
+  std::vector<LayerState> settle() {
+    std::vector<LayerState> applied;
+    for (const auto& [state, outcome] : inbox->take()) {
+      if (outcome.status == SwitchStatus::applied) {
+        event([&] {
+          if (state.epoch > protocol.applied_epoch()) {
+            applied.push_back(state);
+          }
+          return protocol.applied(state, Clock::now());
+        });
+      } else {
+        const std::string why = outcome.error.empty() ? "the switch was dropped" : outcome.error;
+        event([&] { return protocol.failed(state, why, Clock::now()); });
+      }
+    }
+    return applied;
+  }
+
+  void take_states(RclSubscription& subscription) {
+    msg::LayerState message;
+    while (subscription.take(message)) {
+      const LayerState state = state_from_msg(message);
+      event([&] { return protocol.receive_state(state, Clock::now()); });
+    }
+  }
+
+  void take_proposals() {
+    msg::LayerState message;
+    while (proposal_subscription.take(message)) {
+      const LayerState proposal = state_from_msg(message);
+      std::vector<Veto> to_ask;
+      {
+        std::lock_guard<std::mutex> lock(listeners_mutex);
+        to_ask = vetoes;
+      }
+      std::string reasons;
+      for (const Veto& veto : to_ask) {
+        std::string reason;
+        try {
+          reason = veto(proposal);
+        } catch (const std::exception& error) {  // a veto that fails says no
+          reason = std::string("a veto failed: ") + error.what();
+        }
+        if (!reason.empty()) reasons += (reasons.empty() ? "" : "; ") + reason;
+      }
+      event([&] { return protocol.receive_proposal(proposal, Clock::now(), reasons); });
+    }
+  }
+
+  // Called with `mutex` held; at most one line per 10 s (anyone can publish a state).
+  void log_rejected(const StateRejected& rejected) {
+    const Clock::time_point now = Clock::now();
+    if (last_rejection_logged && now - *last_rejection_logged < std::chrono::seconds(10)) {
+      return;
+    }
+    last_rejection_logged = now;
+    std::string problems;
+    for (const std::string& problem : rejected.problems) {
+      problems += (problems.empty() ? "" : "; ") + problem;
+    }
+    RCUTILS_LOG_WARN_NAMED(logger, "ignored a layer state: %s", problems.c_str());
+  }
+
+  void notify_manager_changes() {
+    std::vector<bool> changes;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      changes.swap(manager_changes);
+    }
+    if (changes.empty()) {
+      return;
+    }
+    std::vector<ManagerListener> to_call;
+    {
+      std::lock_guard<std::mutex> lock(listeners_mutex);
+      to_call = manager_listeners;
+    }
+    for (bool lost : changes) {
+      for (const ManagerListener& listener : to_call) {
+        try {
+          listener(lost);
+        } catch (const std::exception& error) {  // a listener must not stop the node
+          RCUTILS_LOG_ERROR_NAMED(logger, "a manager listener failed: %s", error.what());
+        }
+      }
+    }
+  }
+
+  void notify(const std::vector<LayerState>& applied) {
+    std::vector<StateListener> to_call;
+    {
+      std::lock_guard<std::mutex> lock(listeners_mutex);
+      to_call = listeners;
+    }
+    for (const LayerState& state : applied) {
+      for (const StateListener& listener : to_call) {
+        try {
+          listener(state);
+        } catch (const std::exception& error) {  // a listener must not stop the node
+          RCUTILS_LOG_ERROR_NAMED(logger, "a state listener failed: %s", error.what());
+        }
+      }
+    }
+  }
+
+  void loop() {
+    while (!stopping.load()) {
+      auto timeout = std::chrono::nanoseconds(0);
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        timeout = std::max(std::chrono::nanoseconds(0),
+                           std::chrono::duration_cast<std::chrono::nanoseconds>(
+                               protocol.next_tick() - Clock::now()));
+      }
+      rcl_wait_set_t* set = wait_set.get();
+      if (rcl_wait_set_clear(set) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(set, state_subscription.get(), nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(set, heartbeat_subscription.get(), nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(set, proposal_subscription.get(), nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_guard_condition(set, wake.get(), nullptr) != RCL_RET_OK) {
+        std::fprintf(stderr, "contextros: participant wait set: %s\n", rcl_get_error_string().str);
+        rcl_reset_error();
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        continue;
+      }
+      const rcl_ret_t waited = rcl_wait(set, timeout.count());
+      if (waited != RCL_RET_OK && waited != RCL_RET_TIMEOUT) {
+        rcl_reset_error();  // the context is shutting down; the destructor stops us
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+        continue;
+      }
+      if (stopping.load()) {
+        break;
+      }
+      if (set->subscriptions[0] != nullptr) {
+        take_states(state_subscription);
+      }
+      if (set->subscriptions[1] != nullptr) {
+        take_states(heartbeat_subscription);
+      }
+      if (set->subscriptions[2] != nullptr) {
+        take_proposals();
+      }
+      notify(settle());
+      event([&] { return protocol.tick(Clock::now()); });
+      notify_manager_changes();
+    }
+  }
+
+  // Called with `mutex` held.
+  void announce_hosting() {
+    std::vector<LayerInfo> layers = own_layers;
+    std::vector<std::string> names;
+    for (const auto& [name, declarations] : hosted) {
+      names.push_back(name);
+      for (const LayerInfo& layer : declarations) {
+        auto known = std::find_if(layers.begin(), layers.end(),
+                                  [&](const LayerInfo& l) { return l.name == layer.name; });
+        if (known == layers.end()) {
+          layers.push_back(layer);
+        }
+      }
+    }
+    std::sort(names.begin(), names.end());
+    protocol.set_critical_section_open(in_critical_section());
+    run(protocol.host(std::move(names), std::move(layers), Clock::now()));
+  }
+
+  rcl_node_t& node;
+  const char* logger = rcl_node_get_logger_name(&node);
+  std::vector<LayerInfo> own_layers;
+  std::vector<std::pair<std::string, std::vector<LayerInfo>>> hosted;  // in joining order
+  std::mutex mutex;  // protocol, hosted, publishing
+  ParticipantProtocol protocol;
+  RclPublisher status_publisher;
+  RclSubscription state_subscription;
+  RclSubscription heartbeat_subscription;
+  RclSubscription proposal_subscription;
+  RclGuardCondition wake;
+  RclWaitSet wait_set;
+  std::shared_ptr<Inbox> inbox;
+  std::mutex listeners_mutex;
+  std::vector<StateListener> listeners;
+  std::vector<ManagerListener> manager_listeners;
+  std::vector<Veto> vetoes;
+  std::vector<bool> manager_changes;  // lost (true) / found (false), to tell the listeners
+  std::optional<Clock::time_point> last_rejection_logged;
+  std::atomic<bool> stopping{false};
+  std::thread thread;
+};
+
+Participant::Participant(rcl_node_t& node, ParticipantOptions options)
+    : impl_(std::make_unique<Impl>(node, options)) {
+  impl_->event([this] { return impl_->protocol.announce(Clock::now()); });
+  impl_->thread = std::thread([this] { impl_->loop(); });
+}
+
+Participant::~Participant() {
+  impl_->stopping.store(true);
+  impl_->wake.trigger();
+  impl_->thread.join();
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  impl_->run(impl_->protocol.leave());
+}
+
+void Participant::host(const std::string& node_name,
+                       std::optional<std::vector<std::string>> layers) {
+  std::vector<LayerInfo> declarations = declarations_of(layers);
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  auto& hosted = impl_->hosted;
+  auto known = std::find_if(hosted.begin(), hosted.end(),
+                            [&](const auto& entry) { return entry.first == node_name; });
+  if (known != hosted.end()) {
+    known->second = std::move(declarations);
+  } else {
+    hosted.emplace_back(node_name, std::move(declarations));
+  }
+  impl_->announce_hosting();
+}
+
+void Participant::release(const std::string& node_name) {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  auto& hosted = impl_->hosted;
+  auto known = std::find_if(hosted.begin(), hosted.end(),
+                            [&](const auto& entry) { return entry.first == node_name; });
+  if (known != hosted.end()) {
+    hosted.erase(known);
+    impl_->announce_hosting();
+  }
+}
+
+void Participant::add_listener(StateListener listener) {
+  std::lock_guard<std::mutex> lock(impl_->listeners_mutex);
+  impl_->listeners.push_back(std::move(listener));
+}
+
+void Participant::add_veto(Veto veto) {
+  std::lock_guard<std::mutex> lock(impl_->listeners_mutex);
+  impl_->vetoes.push_back(std::move(veto));
+}
+
+void Participant::add_manager_listener(ManagerListener listener) {
+  std::lock_guard<std::mutex> lock(impl_->listeners_mutex);
+  impl_->manager_listeners.push_back(std::move(listener));
+}
+
+const std::string& Participant::node_name() const { return impl_->protocol.node(); }
+
+std::uint64_t Participant::applied_epoch() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->protocol.applied_epoch();
+}
+
+// -- one participant per process ----------------------------------------------------------
+
+namespace {
+
+struct Member {
+  rcl_node_t* node;
+  std::string name;
+  ParticipantOptions options;
+};
+
+struct SharedParticipant {
+  std::mutex mutex;
+  std::vector<Member> members;  // in joining order; members[0] carries the participant
+  std::unique_ptr<Participant> participant;
+  std::vector<StateListener> listeners;
+  std::vector<ManagerListener> manager_listeners;
+  std::vector<Veto> vetoes;
+
+  void carry_by_first() {
+    const Member& carrier = members.front();
+    participant = std::make_unique<Participant>(*carrier.node, carrier.options);
+    for (const StateListener& listener : listeners) {
+      participant->add_listener(listener);
+    }
+    for (const ManagerListener& listener : manager_listeners) {
+      participant->add_manager_listener(listener);
+    }
+    for (const Veto& veto : vetoes) {
+      participant->add_veto(veto);
+    }
+    for (auto other = members.begin() + 1; other != members.end(); ++other) {
+      participant->host(other->name, other->options.layers);
+    }
+  }
+};
+
+SharedParticipant& shared() {
+  static SharedParticipant instance;
+  return instance;
+}
+
+}  // namespace
+
+ContextNode::ContextNode(rcl_node_t& node, ParticipantOptions options) : node_(&node) {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  process.members.push_back(Member{&node, rcl_node_get_fully_qualified_name(&node), options});
+  try {
+    if (!process.participant) {
+      process.carry_by_first();
+    } else {
+      process.participant->host(process.members.back().name, options.layers);
+    }
+  } catch (...) {
+    process.members.pop_back();
+    throw;
+  }
+}
+
+ContextNode::~ContextNode() {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  auto self = std::find_if(process.members.begin(), process.members.end(),
+                           [this](const Member& member) { return member.node == node_; });
+  if (self == process.members.end()) {
+    return;
+  }
+  const bool carrier = self == process.members.begin();
+  const std::string name = self->name;
+  process.members.erase(self);
+  if (!carrier) {
+    process.participant->release(name);
+    return;
+  }
+  process.participant.reset();  // leaves
+  if (!process.members.empty()) {
+    try {
+      process.carry_by_first();  // the next node of the process takes over
+    } catch (const std::exception& error) {
+      std::fprintf(stderr, "contextros: no hand-over of the participant: %s\n", error.what());
+    }
+  }
+}
+
+void ContextNode::add_listener(StateListener listener) {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  process.listeners.push_back(listener);
+  if (process.participant) {
+    process.participant->add_listener(std::move(listener));
+  }
+}
+
+void ContextNode::add_manager_listener(ManagerListener listener) {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  process.manager_listeners.push_back(listener);
+  if (process.participant) {
+    process.participant->add_manager_listener(std::move(listener));
+  }
+}
+
+void ContextNode::add_veto(Veto veto) {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  process.vetoes.push_back(veto);
+  if (process.participant) {
+    process.participant->add_veto(std::move(veto));
+  }
+}
+
+std::string ContextNode::carrier() {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  return process.participant ? process.participant->node_name() : std::string();
+}
+
+}  // namespace contextros::ros

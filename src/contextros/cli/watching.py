@@ -1,0 +1,119 @@
+"""What `contextros watch` reports, as pure logic: messages in, records out.
+
+The ROS side (`ros_commands.run_watch`) only feeds the state and status messages it
+receives, with the clocks' readings, and prints the records; the decisions (which nodes
+must apply an epoch, when it counts as applied by all, what is a replayed old state)
+live here, where tests can drive any order of arrival.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+Record = dict[str, Any]
+
+
+@dataclass
+class _Epoch:
+    published: float  # wall-clock stamp of the state message
+    nodes: set[str]  # the live nodes that must apply it
+    pending: set[str]
+
+
+@dataclass
+class SwitchWatch:
+    """Follows the layer states and the participants' statuses.
+
+    - The first state (the manager's transient-local state as it stood when the watch
+      connected), and any state stamped before the watch started, is a *replayed* one:
+      it carries its age, not a delivery latency.
+    - A switch is applied by all once every node live at its publication has reported
+      an applied epoch at least as new, whichever of the state and the status reached
+      the watch first.
+    """
+
+    started: float  # wall clock when the watch subscribed
+    liveness: float = 2.0  # a node silent this long is no longer counted
+    switches: int = 0
+    last_switch: float = 0.0  # monotonic
+    _seen_state: bool = False
+    _waiting: dict[int, _Epoch] = field(default_factory=dict)
+    _last_heard: dict[str, float] = field(default_factory=dict)
+    _applied: dict[str, int] = field(default_factory=dict)
+
+    def live_nodes(self, now: float) -> set[str]:
+        return {n for n, t in self._last_heard.items() if now - t < self.liveness}
+
+    def state(
+        self,
+        epoch: int,
+        active: list[str],
+        requester: str,
+        reason: str,
+        published: float,
+        wall: float,
+        now: float,
+    ) -> list[Record]:
+        replayed = not self._seen_state or published < self.started
+        self._seen_state = True
+        record: Record = {
+            "event": "current" if replayed else "state",
+            "epoch": epoch,
+            "active": list(active),
+            "requester": requester,
+            "reason": reason,
+            "replayed": replayed,
+        }
+        if replayed:
+            record["age_s"] = round(wall - published, 3)
+        else:
+            record["delivery_ms"] = round((wall - published) * 1000, 3)
+        self.last_switch = now
+        records = [record]
+        if replayed:
+            return records
+        self.switches += 1
+        live = self.live_nodes(now)
+        pending = {n for n in live if self._applied.get(n, 0) < epoch}
+        self._waiting[epoch] = _Epoch(published, live, pending)
+        if not pending:
+            records.append(self._applied_record(epoch, wall))
+        return records
+
+    def status(
+        self, node: str, applied_epoch: int, leaving: bool, wall: float, now: float
+    ) -> list[Record]:
+        records: list[Record] = []
+        if leaving:
+            if self._last_heard.pop(node, None) is not None:
+                records.append({"event": "node-left", "node": node})
+        else:
+            if node not in self.live_nodes(now):
+                records.append({"event": "node", "node": node})
+            self._last_heard[node] = now
+        self._applied[node] = max(self._applied.get(node, 0), applied_epoch)
+        for epoch, waiting in sorted(self._waiting.items()):
+            if applied_epoch >= epoch or leaving:
+                waiting.pending.discard(node)
+                if leaving:
+                    waiting.nodes.discard(node)
+            if not waiting.pending:
+                records.append(self._applied_record(epoch, wall))
+        return records
+
+    def _applied_record(self, epoch: int, wall: float) -> Record:
+        waiting = self._waiting.pop(epoch)
+        latency = (wall - waiting.published) * 1000
+        return {
+            "event": "applied",
+            "epoch": epoch,
+            "nodes": len(waiting.nodes),
+            "latency_ms": round(latency, 3),
+        }
+
+    def finished(self, count: int | None, now: float) -> bool:
+        """After the last counted switch, wait (a little) for its acknowledgements too."""
+        if count is None or self.switches < count:
+            return False
+        return not self._waiting or now - self.last_switch > 2.0

@@ -1,0 +1,897 @@
+"""The C++ flavour's parser: a header part of plain C++, then `Layer Name [ ... ]` blocks.
+
+The layer language's own structure (declarations, relations, brackets) is read from
+tree-sitter's tokens of the file, so brackets, strings and comments inside C++ never
+confuse it; every block's content is parsed by tree-sitter's C++ grammar as function
+definitions. The result is the language-neutral tree of syntax.py, with `CppFunction`s
+carrying the text spans the back end rewrites.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import tree_sitter
+
+from contextros.language.cpp.tokens import (
+    SourceText,
+    Token,
+    first_problem,
+    identifier_char,
+    leaves,
+    tokens,
+)
+from contextros.language.diagnostics import Diagnostic, DiagnosticSink
+from contextros.language.lines import LINE_WORDS, is_line_declaration, parse_line_declaration
+from contextros.language.syntax import (
+    BaseBlock,
+    Function,
+    GroupDecl,
+    LayerDecl,
+    LayerFile,
+    Position,
+    ProceedCall,
+    Ref,
+    Signature,
+)
+
+LAYER_WORDS = ("Layer", "layer")
+RELATIONS = ("excludes", "requires", "after")
+DECLARATION_WORDS = (*LAYER_WORDS, "group", "base", *LINE_WORDS)
+
+CPP_KEYWORDS = frozenset(
+    {
+        "alignas",
+        "alignof",
+        "and",
+        "and_eq",
+        "asm",
+        "auto",
+        "bitand",
+        "bitor",
+        "bool",
+        "break",
+        "case",
+        "catch",
+        "char",
+        "char8_t",
+        "char16_t",
+        "char32_t",
+        "class",
+        "compl",
+        "concept",
+        "const",
+        "consteval",
+        "constexpr",
+        "constinit",
+        "const_cast",
+        "continue",
+        "co_await",
+        "co_return",
+        "co_yield",
+        "decltype",
+        "default",
+        "delete",
+        "do",
+        "double",
+        "dynamic_cast",
+        "else",
+        "enum",
+        "explicit",
+        "export",
+        "extern",
+        "false",
+        "float",
+        "for",
+        "friend",
+        "goto",
+        "if",
+        "inline",
+        "int",
+        "long",
+        "mutable",
+        "namespace",
+        "new",
+        "noexcept",
+        "not",
+        "not_eq",
+        "nullptr",
+        "operator",
+        "or",
+        "or_eq",
+        "private",
+        "protected",
+        "public",
+        "register",
+        "reinterpret_cast",
+        "requires",
+        "return",
+        "short",
+        "signed",
+        "sizeof",
+        "static",
+        "static_assert",
+        "static_cast",
+        "struct",
+        "switch",
+        "template",
+        "this",
+        "thread_local",
+        "throw",
+        "true",
+        "try",
+        "typedef",
+        "typeid",
+        "typename",
+        "union",
+        "unsigned",
+        "using",
+        "virtual",
+        "void",
+        "volatile",
+        "wchar_t",
+        "while",
+        "xor",
+        "xor_eq",
+    }
+)
+# Names the generated code uses for itself.
+RESERVED = frozenset({"proceed", "base"})
+
+
+def name_problem(name: str) -> str:
+    """Why `name` cannot name a layer or a group in generated C++ ('' if it can)."""
+    if not name or not name.isascii() or not (name[0].isalpha() or name[0] == "_"):
+        return "is not a C++ identifier"
+    if not all(identifier_char(c) for c in name):
+        return "is not a C++ identifier"
+    if name in CPP_KEYWORDS:
+        return "is a C++ keyword"
+    if name in RESERVED or name.startswith("contextros_"):
+        return "is reserved by the generated code"
+    return ""
+
+
+@dataclass
+class CppFunction(Function):
+    """A C++ implementation and where its parts are (character offsets in the layer file)."""
+
+    start: int = 0
+    end: int = 0
+    target_start: int = 0  # of the (qualified) name
+    name_start: int = 0
+    name_end: int = 0
+    params_open: int = 0  # just after '('
+    params_close: int = 0  # at ')'
+    no_parameters: bool = True  # `()` or `(void)`
+    declarator_end: int = 0  # before the body
+    defaults: tuple[tuple[int, int], ...] = ()  # ` = value` of parameters
+    exception_specs: tuple[tuple[int, int], ...] = ()  # `noexcept(...)`, `throw(...)`
+    parameter_names: tuple[str | None, ...] = ()
+
+    @property
+    def key(self) -> str:
+        return f"{self.owner}::{self.name}" if self.owner else self.name
+
+
+@dataclass
+class CppClass:
+    """A class defined in the header part, which the compiler can extend."""
+
+    name: str  # with its namespaces: ns::Robot
+    close: int  # offset of the closing brace of its body
+    has_macro: bool  # already holds CONTEXTROS_LAYERED_CLASS
+    methods: frozenset[str]  # member functions it declares
+    # The signature (shape, text, line) of each member function declared once.
+    declarations: dict[str, tuple[tuple[object, ...], str, int]] = field(default_factory=dict)
+
+
+@dataclass
+class CppLayerFile(LayerFile):
+    classes: list[CppClass] = field(default_factory=list)
+    header_functions: frozenset[str] = frozenset()  # functions the header part declares
+    header_end: int = 0  # character offset where the declarations start
+
+    def class_named(self, owner: str) -> CppClass | None:
+        for cls in self.classes:
+            if cls.name == owner or cls.name.endswith("::" + owner):
+                return cls
+        return None
+
+
+def parse_with_diagnostics(
+    source: str, path: str = "<layers>"
+) -> tuple[CppLayerFile, list[Diagnostic]]:
+    """Parse as far as possible and return the tree with all diagnostics (never raises them)."""
+    return _Parser(source, path).run()
+
+
+def _normalized(parts: list[str]) -> str:
+    text = ""
+    for part in parts:
+        glue = "" if not text or text.endswith(("::", "(", "<", "~")) else " "
+        if part in ("::", ",", ")", ">", "&", "&&", "*") or part.startswith("("):
+            glue = "" if part in ("::", ",", ")", ">") else glue
+        text += glue + part
+    return text
+
+
+class _Parser:
+    def __init__(self, source: str, path: str) -> None:
+        self.text = SourceText(source)
+        self.source = source
+        self.path = path
+        self.sink = DiagnosticSink(path, source)
+
+    def error(self, message: str, offset: int) -> None:
+        line, col = self.text.position(offset)
+        self.sink.error(message, line, col)
+
+    def at(self, offset: int) -> Position:
+        return Position(*self.text.position(offset))
+
+    # -- file level ---------------------------------------------------------------------
+
+    def run(self) -> tuple[CppLayerFile, list[Diagnostic]]:
+        header_end = self._header_end()
+        header_lines = (
+            self.text.position(header_end)[0] - 1
+            if header_end < len(self.source)
+            else (
+                len(self.text.line_starts)
+                if self.source and not self.source.endswith(("\n", "\r"))
+                else len(self.text.line_starts) - 1
+            )
+        )
+        result = CppLayerFile(
+            path=self.path,
+            source=self.source,
+            header=self.source[:header_end],
+            header_lines=header_lines,
+            language="cpp",
+            header_end=header_end,
+        )
+        self._header(result)
+        # `rule`, `parameter` and `lifecycle` lines: the shared, language-neutral grammar;
+        # then blanked out, so the C++ tokens of the rest keep their offsets.
+        masked = self._line_declarations(header_end, result)
+        text = self.text if masked == self.source else SourceText(masked)
+        found, bad = tokens(text, header_end, len(self.source))
+        if bad is not None:
+            self.error(f"unexpected character {self.source[bad]!r}", bad)
+        found = [t for t in found if t.kind != "comment"]
+        self._declarations(found, result)
+        self._parameter_names(result)
+        self._class_declarations(result)
+        return result, self.sink.items
+
+    def _class_declarations(self, result: CppLayerFile) -> None:
+        """A layer's method must match its declaration in a class of the header part.
+
+        Checked for the first implementation of each method: the checker compares the
+        others with that one (one mistake, one error).
+        """
+        seen: set[str] = set()
+        for function in sorted(result.all_functions(), key=lambda f: (f.at.line, f.at.col)):
+            if not isinstance(function, CppFunction) or function.owner is None:
+                continue
+            if function.key in seen:
+                continue
+            seen.add(function.key)
+            cls = result.class_named(function.owner)
+            declared = cls.declarations.get(function.name) if cls is not None else None
+            if declared is None or declared[0] == function.signature.shape:
+                continue
+            self.sink.error(
+                f"incompatible signature: {function.signature.text} does not match the "
+                f"declaration {declared[1]} in class {function.owner} (line {declared[2]})",
+                function.at.line,
+                function.at.col,
+            )
+
+    def _parameter_names(self, result: CppLayerFile) -> None:
+        """The dispatch function forwards its arguments: it needs every parameter named."""
+        by_key: dict[str, list[CppFunction]] = {}
+        for function in result.all_functions():
+            if isinstance(function, CppFunction):
+                by_key.setdefault(function.key, []).append(function)
+        for key, functions in by_key.items():
+            if not any(None not in f.parameter_names for f in functions):
+                first = functions[0]
+                self.sink.error(
+                    f"the dispatch function of {key} needs parameter names: name every "
+                    "parameter in at least one implementation",
+                    first.at.line,
+                    first.at.col,
+                )
+
+    def _header_end(self) -> int:
+        """Where the first declaration starts: a column-1 `Layer X`, `group X:`, `base [` or a
+        `rule`/`parameter`/`lifecycle` line."""
+        tree: tree_sitter.Tree | None = None
+        for start in self.text.line_starts:
+            if not self._declaration_line(start):
+                continue
+            tree = tree or self.text.parse()
+            node = tree.root_node.descendant_for_byte_range(
+                self.text.byte(start), self.text.byte(start) + 1
+            )
+            inside = False
+            while node is not None:
+                if node.type in ("comment", "string_literal", "raw_string_literal") or (
+                    node.type.startswith("preproc_")
+                    and node.type != "preproc_include"
+                    and self.text.char(node.start_byte) < start
+                    and node.type
+                    not in ("preproc_if", "preproc_ifdef", "preproc_else", "preproc_elif")
+                ):
+                    inside = True
+                    break
+                node = node.parent
+            if not inside:
+                return start
+        return len(self.source)
+
+    def _word(self, offset: int) -> tuple[str, int]:
+        end = offset
+        while end < len(self.source) and identifier_char(self.source[end]):
+            end += 1
+        return self.source[offset:end], end
+
+    def _skip_blanks(self, offset: int) -> int:
+        while offset < len(self.source) and self.source[offset] in " \t":
+            offset += 1
+        return offset
+
+    def _line_declarations(self, header_end: int, result: CppLayerFile) -> str:
+        """Hand every column-1 `rule`/`parameter`/`lifecycle` line to the shared parser (without
+        its `//` comment and an optional `;`); return the source with those lines blanked."""
+        masked = self.source
+        for number, start in enumerate(self.text.line_starts, start=1):
+            if start < header_end or not is_line_declaration(self.source[start : start + 40]):
+                continue
+            end = start
+            while end < len(self.source) and self.source[end] not in "\r\n":
+                end += 1
+            line = self.source[start:end]
+            code = line.split("//", 1)[0].rstrip()
+            code = code[:-1].rstrip() if code.endswith(";") else code
+            parse_line_declaration(code, number, result, self.sink)
+            masked = masked[:start] + " " * (end - start) + masked[end:]
+        return masked
+
+    def _declaration_line(self, start: int) -> bool:
+        if is_line_declaration(self.source[start : start + 80]):
+            return True
+        word, end = self._word(start)
+        if word not in DECLARATION_WORDS or end == start:
+            return False
+        after = self._skip_blanks(end)
+        if word == "base":
+            return after < len(self.source) and self.source[after] == "["
+        if after == end:
+            return False
+        name, name_end = self._word(after)
+        if not name:
+            return False
+        rest = self._skip_blanks(name_end)
+        following = self.source[rest] if rest < len(self.source) else ""
+        if word == "group":
+            return following == ":"
+        # `Layer x;`, `Layer x = ...`, `Layer f(...)` are C++ in the header; a layer line
+        # goes on with a relation (or a misspelt one), '[' or nothing.
+        return following in ("[", "\n", "\r", "") or identifier_char(following)
+
+    # -- the header part ----------------------------------------------------------------
+
+    def _header(self, result: CppLayerFile) -> None:
+        if not result.header.strip():
+            return
+        tree = self.text.parse(0, result.header_end)
+        names: set[str] = set()
+        functions: set[str] = set()
+        opaque = False
+        pending: list[tuple[tree_sitter.Node, str]] = [(tree.root_node, "")]
+        while pending:
+            node, scope = pending.pop()
+            for child in node.named_children:
+                kind = child.type
+                if kind in ("preproc_include", "using_declaration"):
+                    opaque = True
+                elif kind == "namespace_definition":
+                    name = child.child_by_field_name("name")
+                    body = child.child_by_field_name("body")
+                    if body is not None:
+                        nested = f"{scope}{self.text.text(name)}::" if name is not None else scope
+                        pending.append((body, nested))
+                elif kind in (
+                    "preproc_if",
+                    "preproc_ifdef",
+                    "preproc_else",
+                    "preproc_elif",
+                    "linkage_specification",
+                    "declaration_list",
+                ):
+                    pending.append((child, scope))
+                elif kind in ("class_specifier", "struct_specifier"):
+                    self._class(child, scope, names, result)
+                elif kind in ("declaration", "type_definition", "field_declaration"):
+                    specifier = child.child_by_field_name("type")
+                    if specifier is not None and specifier.type in (
+                        "class_specifier",
+                        "struct_specifier",
+                    ):
+                        self._class(specifier, scope, names, result)
+                    for index in range(child.child_count):
+                        if child.field_name_for_child(index) != "declarator":
+                            continue
+                        declarator = child.children[index]
+                        if declarator.type == "function_declarator":
+                            target = declarator.child_by_field_name("declarator")
+                            if target is not None:
+                                functions.add(self.text.text(target))
+                        elif declarator.type in ("identifier", "type_identifier"):
+                            names.add(self.text.text(declarator))
+                        elif declarator.type == "init_declarator":
+                            inner = declarator.child_by_field_name("declarator")
+                            if inner is not None and inner.type == "identifier":
+                                names.add(self.text.text(inner))
+                elif kind in ("alias_declaration", "enum_specifier", "preproc_def"):
+                    named = child.child_by_field_name("name")
+                    if named is not None:
+                        names.add(self.text.text(named))
+        result.header_names = frozenset(names)
+        result.header_functions = frozenset(functions)
+        result.header_opaque = opaque
+
+    def _class(
+        self, node: tree_sitter.Node, scope: str, names: set[str], result: CppLayerFile
+    ) -> None:
+        name = node.child_by_field_name("name")
+        body = node.child_by_field_name("body")
+        if name is None:
+            return
+        names.update({self.text.text(name), f"{scope}{self.text.text(name)}"})
+        # (tree-sitter may stumble inside a valid body, `= {}` defaults for one: the body
+        # counts when its closing brace is really there.)
+        if body is None or body.children[-1].type != "}" or body.children[-1].is_missing:
+            return
+        methods: dict[str, list[tuple[tuple[object, ...], str, int]]] = {}
+        has_macro = False
+        for member in body.named_children:
+            if "CONTEXTROS_LAYERED_CLASS" in [self.text.text(leaf) for leaf in leaves(member)]:
+                has_macro = True
+            declarator = _function_declarator(member.child_by_field_name("declarator"))
+            if declarator is None:
+                continue
+            target = declarator.child_by_field_name("declarator")
+            parameters = declarator.child_by_field_name("parameters")
+            if target is None or parameters is None:
+                continue
+            method = self.text.text(target)
+            shape, types, *_ = self._shape(member, declarator, target, parameters)
+            text = f"{shape[0]} {method}({', '.join(types)})" + (f" {shape[2]}" if shape[2] else "")
+            line = self.text.position(self.text.span(member)[0])[0]
+            methods.setdefault(method, []).append((shape, text, line))
+        close = self.text.char(body.children[-1].start_byte)
+        result.classes.append(
+            CppClass(
+                f"{scope}{self.text.text(name)}",
+                close,
+                has_macro,
+                frozenset(methods),
+                {m: d[0] for m, d in methods.items() if len(d) == 1},
+            )
+        )
+
+    # -- declarations -------------------------------------------------------------------
+
+    def _declarations(self, found: list[Token], result: CppLayerFile) -> None:
+        i = 0
+        while i < len(found):
+            token = found[i]
+            if token.text in LAYER_WORDS:
+                i = self._layer(found, i, result)
+            elif token.text == "group":
+                i = self._group(found, i, result)
+            elif token.text == "base":
+                i = self._base(found, i, result)
+            else:
+                self.error(
+                    f"expected a declaration ('Layer', 'base' or 'group'), found "
+                    f"{token.text!r}; C++ code belongs in the header part, above the first "
+                    "declaration, or in a layer's [ ... ] block",
+                    token.start,
+                )
+                i = self._recover(found, i + 1)
+
+    def _recover(self, found: list[Token], i: int) -> int:
+        """The next token that starts a line with a declaration word."""
+        while i < len(found):
+            token = found[i]
+            col = self.text.position(token.start)[1]
+            if col == 1 and token.text in DECLARATION_WORDS:
+                return i
+            i += 1
+        return i
+
+    def _name(self, found: list[Token], i: int, what: str, after: Token) -> Ref | None:
+        if i < len(found) and found[i].text not in ("[", ":", ",", ";", "]"):
+            token = found[i]
+            problem = name_problem(token.text)
+            if problem:
+                self.error(f"{token.text!r} {problem}", token.start)
+                return None
+            return Ref(token.text, self.at(token.start))
+        if i < len(found):
+            self.error(f"expected {what}, found {found[i].text!r}", found[i].start)
+        else:
+            self.error(f"expected {what}", after.end)
+        return None
+
+    def _names(self, found: list[Token], i: int, what: str) -> tuple[list[Ref], int]:
+        refs: list[Ref] = []
+        while True:
+            ref = self._name(found, i, what, found[i - 1])
+            if ref is None:
+                return refs, -1
+            refs.append(ref)
+            i += 1
+            if i < len(found) and found[i].text == ",":
+                i += 1
+                continue
+            return refs, i
+
+    def _layer(self, found: list[Token], i: int, result: CppLayerFile) -> int:
+        name = self._name(found, i + 1, "a layer name after 'Layer'", found[i])
+        if name is None:
+            return self._recover(found, i + 1)
+        layer = LayerDecl(name.name, name.at)
+        j = i + 2
+        while j < len(found) and found[j].text in RELATIONS:
+            relation = found[j].text
+            refs, j = self._names(found, j + 1, f"a layer name after {relation!r}")
+            if j < 0:
+                return self._recover(found, i + 1)
+            getattr(layer, relation).extend(refs)
+        if j >= len(found) or found[j].text != "[":
+            where = found[j].start if j < len(found) else found[j - 1].end
+            got = f", found {found[j].text!r}" if j < len(found) else ""
+            self.error(f"expected 'excludes', 'requires', 'after' or '['{got}", where)
+            return self._recover(found, j)
+        close = self._block_end(found, j)
+        if close is None:
+            return len(found)
+        result.layers.append(layer)
+        layer.functions.extend(self._functions(found[j], found[close], layer.name, result))
+        return close + 1
+
+    def _base(self, found: list[Token], i: int, result: CppLayerFile) -> int:
+        j = i + 1
+        if j >= len(found) or found[j].text != "[":
+            self.error(
+                "expected '[' after 'base'", found[j].start if j < len(found) else found[i].end
+            )
+            return self._recover(found, j)
+        close = self._block_end(found, j)
+        if close is None:
+            return len(found)
+        block = BaseBlock(self.at(found[i].start))
+        result.bases.append(block)
+        block.functions.extend(self._functions(found[j], found[close], None, result))
+        return close + 1
+
+    def _group(self, found: list[Token], i: int, result: CppLayerFile) -> int:
+        name = self._name(found, i + 1, "a group name after 'group'", found[i])
+        if name is None:
+            return self._recover(found, i + 1)
+        j = i + 2
+        if j >= len(found) or found[j].text != ":":
+            where = found[j].start if j < len(found) else found[j - 1].end
+            self.error("expected ':' after the group name", where)
+            return self._recover(found, j)
+        members, j = self._names(found, j + 1, "a layer name in the group")
+        if j < 0:
+            return self._recover(found, i + 1)
+        result.groups.append(GroupDecl(name.name, name.at, members))
+        if j < len(found) and found[j].text == ";":
+            return j + 1
+        if j < len(found) and found[j].text not in DECLARATION_WORDS:
+            self.error(
+                f"expected ',' or ';' after a group member, found {found[j].text!r}", found[j].start
+            )
+            return self._recover(found, j)
+        return j
+
+    def _block_end(self, found: list[Token], open_index: int) -> int | None:
+        """The index of the `]` closing the block opened at `open_index` (None: reported)."""
+        square = 0
+        braces: list[Token] = []
+        for k in range(open_index, len(found)):
+            text = found[k].text
+            if text in ("[", "[["):
+                square += len(text)
+            elif text in ("]", "]]"):
+                square -= len(text)
+                if square <= 0:
+                    if braces:
+                        self.error("'{' is not closed before the layer's ']'", braces[-1].start)
+                        return None
+                    if square < 0:
+                        self.error("']]' closes the block and an inner '[' at once", found[k].start)
+                        return None
+                    return k
+            elif text == "{":
+                braces.append(found[k])
+            elif text == "}" and braces:
+                braces.pop()
+        self.error(
+            "this block is not closed: expected ']' after its functions", found[open_index].start
+        )
+        return None
+
+    # -- functions ------------------------------------------------------------------------
+
+    def _functions(
+        self, opening: Token, closing: Token, layer: str | None, result: CppLayerFile
+    ) -> list[Function]:
+        owner_text = f"layer {layer}" if layer is not None else "the base block"
+        tree = self.text.parse(opening.end, closing.start)
+        functions: list[Function] = []
+        for child in tree.root_node.named_children:
+            start, _ = self.text.span(child)
+            if child.type == "comment" or start < opening.end or start >= closing.start:
+                continue
+            if child.type != "function_definition":
+                what = "a template" if child.type == "template_declaration" else None
+                problem = first_problem(child) if child.type != "ERROR" else child
+                if what:
+                    self.error(
+                        f"{what} cannot be layered: expected a function definition in {owner_text}",
+                        start,
+                    )
+                elif problem is not None and problem is not child:
+                    self._syntax_error(problem)
+                else:
+                    self.error(
+                        "expected a C++ function definition (a free function or Class::method) "
+                        f"in {owner_text}",
+                        start,
+                    )
+                continue
+            function = self._function(child, layer)
+            if function is not None:
+                functions.append(function)
+        if not functions and not self.sink.has_errors:
+            self.error(
+                f"{owner_text} is empty: expected function definitions between '[' and ']'",
+                opening.start,
+            )
+        return functions
+
+    def _syntax_error(self, node: tree_sitter.Node) -> None:
+        start, end = self.text.span(node)
+        if node.is_missing:
+            self.error(f"C++ syntax error: missing {node.type!r}", start)
+            return
+        text = self.source[start:end].split("\n")[0].strip()
+        self.error(f"C++ syntax error: unexpected {text[:40]!r}", start)
+
+    def _function(self, node: tree_sitter.Node, layer: str | None) -> CppFunction | None:
+        start, end = self.text.span(node)
+        problem = first_problem(node)
+        if problem is not None:
+            self._syntax_error(problem)
+            return None
+        for child in node.children:
+            if child.type in ("storage_class_specifier", "virtual", "explicit"):
+                self.error(
+                    f"{self.text.text(child)!r} is not allowed on a layer's function: the "
+                    "dispatch function is what others call",
+                    self.text.span(child)[0],
+                )
+                return None
+        declarator = _function_declarator(node.child_by_field_name("declarator"))
+        body = node.child_by_field_name("body")
+        if declarator is None or body is None:
+            self.error("expected a function definition with a body", start)
+            return None
+        target = declarator.child_by_field_name("declarator")
+        parameters = declarator.child_by_field_name("parameters")
+        assert target is not None and parameters is not None
+        owner: str | None = None
+        name_node = target
+        if target.type == "qualified_identifier":
+            while name_node.type == "qualified_identifier":
+                inner_name = name_node.child_by_field_name("name")
+                if inner_name is None:
+                    break
+                name_node = inner_name
+            scope_end = self.text.span(name_node)[0]
+            owner = "".join(self.source[self.text.span(target)[0] : scope_end].split())
+            owner = owner.removesuffix("::")
+        if name_node.type != "identifier" or (owner is not None and not owner):
+            self.error(
+                f"cannot layer {self.text.text(target)!r}: expected a function name or "
+                "Class::method",
+                self.text.span(target)[0],
+            )
+            return None
+        name = self.text.text(name_node)
+        name_start, name_end = self.text.span(name_node)
+        shape, types, names, defaults, problem_at = self._shape(
+            node, declarator, target, parameters
+        )
+        if problem_at is not None:
+            self.error(problem_at[1], problem_at[0])
+            return None
+        key = f"{owner}::{name}" if owner else name
+        text = f"{shape[0]} {key}({', '.join(types)})" + (f" {shape[2]}" if shape[2] else "")
+        calls = tuple(
+            ProceedCall(self.at(self.text.span(call)[0]))
+            for call in _calls(body)
+            if self.text.text(call.child_by_field_name("function") or call) == "proceed"
+        )
+        stem = f"{owner.replace('::', '_')}_{name}" if owner else name
+        open_start, close_start = self.text.span(parameters)
+        return CppFunction(
+            name=name,
+            owner=owner,
+            layer=layer,
+            at=self.at(name_start),
+            generated_name=f"{stem}_{layer}" if layer is not None else f"{stem}_base",
+            signature=Signature((shape[0], shape[1], shape[2]), text),
+            proceed_calls=calls,
+            takes_instance=True,
+            instance_name="this",
+            start=start,
+            end=end,
+            target_start=self.text.span(target)[0],
+            name_start=name_start,
+            name_end=name_end,
+            params_open=open_start + 1,
+            params_close=close_start - 1,
+            no_parameters=not types,
+            declarator_end=self.text.span(declarator)[1],
+            defaults=tuple(defaults),
+            exception_specs=tuple(
+                self.text.span(child)
+                for child in declarator.children
+                if child.type in ("noexcept", "throw_specifier")
+            ),
+            parameter_names=tuple(names),
+        )
+
+    def _shape(
+        self,
+        node: tree_sitter.Node,
+        declarator: tree_sitter.Node,
+        target: tree_sitter.Node,
+        parameters: tree_sitter.Node,
+    ) -> tuple[
+        tuple[str, tuple[str, ...], str],
+        list[str],
+        list[str | None],
+        list[tuple[int, int]],
+        tuple[int, str] | None,
+    ]:
+        """What callers rely on: the return type, the parameter types, the qualifiers."""
+        target_start = self.text.span(target)[0]
+        # The return type: every token before the declarator's name, less what only a
+        # declaration in a class says (virtual, static...).
+        attributes = [
+            self.text.span(child)
+            for child in node.children
+            if child.type in ("attribute_declaration", "attribute_specifier", "comment")
+        ]
+        returns = [
+            self.text.text(leaf)
+            for leaf in leaves(node)
+            if self.text.span(leaf)[0] < target_start
+            and self.text.text(leaf) not in _SPECIFIERS
+            and not any(a <= self.text.span(leaf)[0] < b for a, b in attributes)
+        ]
+        types, names, defaults, problem_at = self._parameters(parameters)
+        parameters_end = self.text.span(parameters)[1]
+        qualifiers = [
+            self.text.text(leaf)
+            for child in declarator.children
+            if self.text.span(child)[0] >= parameters_end and child.type != "virtual_specifier"
+            for leaf in leaves(child)
+        ]
+        shape = (_normalized(returns), tuple(types), _normalized(qualifiers))
+        return shape, types, names, defaults, problem_at
+
+    def _parameters(
+        self, parameters: tree_sitter.Node
+    ) -> tuple[list[str], list[str | None], list[tuple[int, int]], tuple[int, str] | None]:
+        types: list[str] = []
+        names: list[str | None] = []
+        defaults: list[tuple[int, int]] = []
+        named = parameters.named_children
+        for child in parameters.children:
+            if child.type == "...":
+                return (
+                    [],
+                    [],
+                    [],
+                    (self.text.span(child)[0], "C-style variadic functions cannot be layered"),
+                )
+        for parameter in named:
+            start = self.text.span(parameter)[0]
+            if parameter.type == "comment":
+                continue
+            if parameter.type not in ("parameter_declaration", "optional_parameter_declaration"):
+                return (
+                    [],
+                    [],
+                    [],
+                    (
+                        start,
+                        "cannot layer a function with a parameter like "
+                        f"{self.text.text(parameter)!r}",
+                    ),
+                )
+            declarator = parameter.child_by_field_name("declarator")
+            name_node = _declared_name(declarator) if declarator is not None else None
+            default = parameter.child_by_field_name("default_value")
+            cut = self.text.span(default)[1] if default is not None else None
+            type_end = self.text.span(declarator)[1] if declarator is not None else None
+            parts = [
+                self.text.text(leaf)
+                for leaf in leaves(parameter)
+                if (name_node is None or leaf.start_byte != name_node.start_byte)
+                and (type_end is None or default is None or self.text.span(leaf)[0] < type_end)
+            ]
+            if parts == ["void"] and len(named) == 1:
+                break
+            types.append(_normalized(parts))
+            names.append(self.text.text(name_node) if name_node is not None else None)
+            if default is not None and cut is not None and type_end is not None:
+                defaults.append((type_end, cut))
+        return types, names, defaults, None
+
+
+# Said only where a member function is declared in its class, not where it is defined.
+_SPECIFIERS = frozenset({"virtual", "static", "inline", "explicit", "friend", "constexpr"})
+
+
+def _function_declarator(node: tree_sitter.Node | None) -> tree_sitter.Node | None:
+    """The function declarator under pointer and reference declarators (`T& f()`), if any."""
+    while node is not None and node.type in ("pointer_declarator", "reference_declarator"):
+        inner = node.child_by_field_name("declarator")
+        if inner is None:
+            named = [c for c in node.named_children if c.type.endswith("declarator")]
+            inner = named[0] if named else None
+        node = inner
+    return node if node is not None and node.type == "function_declarator" else None
+
+
+def _declared_name(node: tree_sitter.Node) -> tree_sitter.Node | None:
+    """The identifier a (possibly nested) parameter declarator declares."""
+    current: tree_sitter.Node | None = node
+    while current is not None:
+        if current.type == "identifier":
+            return current
+        inner = current.child_by_field_name("declarator")
+        if inner is None:
+            nested = [
+                c
+                for c in current.named_children
+                if c.type == "identifier" or c.type.endswith("declarator")
+            ]
+            inner = nested[0] if nested else None
+        current = inner
+    return None
+
+
+def _calls(node: tree_sitter.Node) -> list[tree_sitter.Node]:
+    found: list[tree_sitter.Node] = []
+    stack = [node]
+    while stack:
+        current = stack.pop()
+        if current.type == "call_expression":
+            found.append(current)
+        stack.extend(current.named_children)
+    found.sort(key=lambda n: n.start_byte)
+    return found

@@ -1,0 +1,38 @@
+"""The flavours of the layer language and which one a file is written in.
+
+Both flavours share the syntax tree, the checker and the diagnostics; each has its own
+parser and back end. A file's flavour comes from its inner suffix: `NAME.cpp.layers` is
+C++, `NAME.layers` and `NAME.py.layers` are Python (`--language` overrides).
+"""
+
+from __future__ import annotations
+
+import os
+
+from contextros.language.diagnostics import Diagnostic
+from contextros.language.syntax import LayerFile
+
+LANGUAGES = ("python", "cpp")
+
+
+def language_of(path: str | os.PathLike[str], language: str | None = None) -> str:
+    """The flavour of the layer file at `path`, unless `language` names one."""
+    if language is not None:
+        if language not in LANGUAGES:
+            raise ValueError(f"unknown layer language {language!r} (known: {', '.join(LANGUAGES)})")
+        return language
+    name = os.path.basename(os.fspath(path))
+    return "cpp" if name.endswith((".cpp.layers", ".cc.layers", ".cxx.layers")) else "python"
+
+
+def parse_with_diagnostics(
+    source: str, path: str, language: str | None = None
+) -> tuple[LayerFile, list[Diagnostic]]:
+    """Parse in the file's flavour; all syntax diagnostics, never raised."""
+    if language_of(path, language) == "cpp":
+        from contextros.language.cpp.parser import parse_with_diagnostics as parse_cpp
+
+        return parse_cpp(source, path)
+    from contextros.language.parser import parse_with_diagnostics as parse_python
+
+    return parse_python(source, path)

@@ -1,0 +1,59 @@
+"""One-line declarations shared by every flavour: `rule`, `parameter`, `lifecycle`.
+
+They hold no code of the host language, so both parsers hand such a line here (the Python
+flavour as it is, the C++ flavour without its `//` comment and optional `;`), and the tree
+they produce (`LayerFile.rules`, `.parameters`, `.lifecycles`) is the same.
+"""
+
+from __future__ import annotations
+
+import re
+
+from contextros.language.bindings import parse_lifecycle, parse_parameter
+from contextros.language.diagnostics import DiagnosticSink
+from contextros.language.rules import parse_rule
+from contextros.language.syntax import LayerFile, Position, Ref
+
+LINE_WORDS = ("rule", "parameter", "lifecycle")
+_NAME = r"[^\W\d]\w*"
+# What starts such a declaration at column 1 (enough to end a header: none is valid code).
+LINE_START = re.compile(rf"(?:rule|parameter|lifecycle)[ \t]+{_NAME}[ \t]*:")
+_HEAD = re.compile(
+    rf"(?P<word>rule|parameter|lifecycle)[ \t]+(?P<name>{_NAME})?[ \t]*(?P<colon>:)?"
+)
+
+
+def is_line_declaration(text: str) -> bool:
+    return LINE_START.match(text) is not None
+
+
+def parse_line_declaration(text: str, line: int, result: LayerFile, sink: DiagnosticSink) -> None:
+    """Parse `text` (the declaration line `line`, from column 1) into `result`; errors, with
+    their column, go to `sink`."""
+    head = _HEAD.match(text)
+    word = head.group("word") if head else "rule"
+    what = "a rule name" if word == "rule" else "a layer name"
+    if head is None or head.group("name") is None:
+        col = head.end() if head else 4
+        rest = text[col:].split()
+        found = repr(rest[0]) if rest else "the end of the line"
+        sink.error(f"expected {what} after {word!r}, found {found}", line, col + 1)
+        return
+    if head.group("colon") is None:
+        after = text[head.end("name") :]
+        col = head.end("name") + len(after) - len(after.lstrip(" \t"))
+        sink.error(f"expected ':' after the {what[2:]}", line, col + 1)
+        return
+    name = Ref(head.group("name"), Position(line, head.start("name") + 1))
+    colon = head.end("colon")
+    body, col = text[colon:], colon + 1
+    if word == "rule":
+        rule = parse_rule(name, body, line, col, sink)
+        if rule is not None:
+            result.rules.append(rule)
+    elif word == "parameter":
+        binding = parse_parameter(name, body, line, col, sink)
+        if binding is not None:
+            result.parameters.append(binding)
+    else:
+        result.lifecycles += parse_lifecycle(name, body, line, col, sink)

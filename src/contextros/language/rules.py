@@ -1,0 +1,399 @@
+"""Context rules: the `rule` declarations of layer files, parsed the same in every flavour.
+
+A rule derives a context from the robot's own topics, one line in a layer file:
+
+    rule GpsFix: Outdoor while gps/fix.status.status >= 0 for 0.15 s else Indoor
+    rule Battery: LowBattery while battery.percentage < 20 for 2 s hysteresis 5
+    rule Dock: activate Docked when dock/contact.data == true
+
+A rule holds no code of the host language, so this grammar, its syntax tree and its
+diagnostics are language-neutral: the Python and the C++ flavour's parsers hand the text
+after `rule NAME:` to `parse_rule`. Evaluation lives in `contextros.rules` (ROS-free), the
+subscriptions in `contextros.ros.rules`.
+
+Grammar (EBNF; `TOPIC.FIELD` reads a field of the latest message on a topic, e.g.
+`gps/fix.status.status`: a ROS name has no dots, so the first dot ends the topic):
+
+    rule      = "rule" NAME ":" action ;
+    action    = LAYER "while" condition [hold] [hysteresis] ["else" LAYER]
+              | ("activate" | "deactivate") LAYER "when" condition [hold] ;
+    hold      = "for" NUMBER ("s" | "ms") ;
+    hysteresis = "hysteresis" NUMBER ;
+    condition = conjunct { "or" conjunct } ;
+    conjunct  = negation { "and" negation } ;
+    negation  = "not" negation | "(" condition ")" | comparison ;
+    comparison = operand [ ("<" | "<=" | ">" | ">=" | "==" | "!=") operand ] ;
+    operand   = FIELD | NUMBER | STRING | "true" | "false" ;
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+from contextros.language.diagnostics import DiagnosticSink
+from contextros.language.syntax import Position, Ref
+
+COMPARISONS = ("<=", ">=", "==", "!=", "<", ">")
+_KEYWORDS = frozenset(
+    {"while", "when", "for", "else", "hysteresis", "and", "or", "not", "activate", "deactivate"}
+)
+_NAME = r"[A-Za-z_][A-Za-z0-9_]*"
+_RULE_TOKEN = re.compile(
+    rf"""(?P<ws>[ \t]+)
+    |(?P<comment>\#.*)
+    |(?P<field>~?/?{_NAME}(?:/{_NAME})*(?:\.{_NAME})+)
+    |(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
+    |(?P<string>"(?:[^"\\]|\\.)*"|'(?:[^'\\]|\\.)*')
+    |(?P<op><=|>=|==|!=|<|>|\(|\))
+    |(?P<name>{_NAME})
+    """,
+    re.VERBOSE,
+)
+
+
+@dataclass(frozen=True)
+class FieldRef:
+    """`topic.a.b`: field `a.b` of the latest message on `topic` (relative to the namespace
+    of the node running the rules)."""
+
+    topic: str
+    path: tuple[str, ...]
+    at: Position
+
+    @property
+    def text(self) -> str:
+        return f"{self.topic}.{'.'.join(self.path)}"
+
+
+Value = float | str | bool
+
+
+@dataclass(frozen=True)
+class Literal:
+    value: Value
+    at: Position
+
+
+Operand = FieldRef | Literal
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """`left OP right`, or a lone operand (`op` empty: the field's truth value)."""
+
+    left: Operand
+    op: str
+    right: Operand | None
+    at: Position
+
+
+@dataclass(frozen=True)
+class Not:
+    operand: Condition
+    at: Position
+
+
+@dataclass(frozen=True)
+class BoolOp:
+    op: str  # "and" | "or"
+    operands: tuple[Condition, ...]
+    at: Position
+
+
+Condition = Comparison | Not | BoolOp
+
+
+@dataclass
+class RuleDecl:
+    """One rule. `mode` is "while" (the layer follows the condition: active while it holds,
+    deactivated, or `otherwise` activated, when it stops holding), "activate" or
+    "deactivate" (done when the condition starts holding)."""
+
+    name: str
+    at: Position
+    mode: str
+    layer: Ref
+    condition: Condition
+    text: str  # the rule as written, after 'rule NAME:'
+    hold: float = 0.0  # seconds the condition must keep its new value before acting
+    hysteresis: float = 0.0  # how far past a threshold a 'while' condition must go back
+    otherwise: Ref | None = None
+    fields: list[FieldRef] = field(default_factory=list)
+    path: str = "<rules>"  # the file it was read from, for later diagnostics
+
+    def targets(self) -> tuple[str, ...]:
+        return (self.layer.name,) + ((self.otherwise.name,) if self.otherwise else ())
+
+    def describe(self) -> str:
+        return f"rule {self.name}: {self.text}"
+
+
+@dataclass(frozen=True)
+class _Tok:
+    kind: str
+    text: str
+    col: int  # 1-based, in the file's line
+
+
+class _RuleParser:
+    def __init__(self, text: str, line: int, col: int, sink: DiagnosticSink) -> None:
+        self.line = line
+        self.sink = sink
+        self.tokens: list[_Tok] = []
+        self.end_col = col + len(text.rstrip())
+        self.ok = self._tokenize(text, col)
+        self.i = 0
+        self.fields: list[FieldRef] = []
+
+    def _tokenize(self, text: str, col: int) -> bool:
+        pos = 0
+        while pos < len(text):
+            match = _RULE_TOKEN.match(text, pos)
+            if match is None:
+                self.sink.error(
+                    f"unexpected character {text[pos]!r} in a rule", self.line, col + pos
+                )
+                return False
+            kind = match.lastgroup or ""
+            if kind == "comment":
+                self.end_col = col + len(text[:pos].rstrip())
+                break
+            if kind != "ws":
+                self.tokens.append(_Tok(kind, match.group(), col + pos))
+            pos = match.end()
+        return True
+
+    # -- helpers ------------------------------------------------------------------------
+
+    def peek(self) -> _Tok | None:
+        return self.tokens[self.i] if self.i < len(self.tokens) else None
+
+    def at(self) -> Position:
+        token = self.peek()
+        return Position(self.line, token.col if token else self.end_col)
+
+    def fail(self, expected: str) -> None:
+        token = self.peek()
+        found = f", found {token.text!r}" if token else ", found the end of the line"
+        self.sink.error(f"expected {expected}{found}", self.line, self.at().col)
+        raise _Stop
+
+    def word(self, *words: str) -> str | None:
+        token = self.peek()
+        if token is not None and token.kind == "name" and token.text in words:
+            self.i += 1
+            return token.text
+        return None
+
+    def layer(self, what: str) -> Ref:
+        token = self.peek()
+        if token is None or token.kind != "name" or token.text in _KEYWORDS:
+            self.fail(what)
+        assert token is not None
+        self.i += 1
+        return Ref(token.text, Position(self.line, token.col))
+
+    def number(self, what: str) -> float:
+        token = self.peek()
+        if token is None or token.kind != "number":
+            self.fail(what)
+        assert token is not None
+        self.i += 1
+        value = float(token.text)
+        if not math.isfinite(value) or value < 0:
+            self.sink.error(f"{what} must be a finite number >= 0", self.line, token.col)
+            raise _Stop
+        return value
+
+    # -- grammar ------------------------------------------------------------------------
+
+    def rule(self, name: Ref, text: str) -> RuleDecl:
+        if not self.tokens:
+            self.fail("a rule: 'LAYER while CONDITION' or 'activate|deactivate LAYER when ...'")
+        mode = self.word("activate", "deactivate")
+        layer = self.layer("the layer the rule switches")
+        if mode is None:
+            if self.word("while") is None:
+                self.fail("'while' after the layer (or 'activate LAYER when ...')")
+            mode = "while"
+        elif self.word("when") is None:
+            self.fail(f"'when' after '{mode} {layer.name}'")
+        condition = self.condition()
+        rule = RuleDecl(
+            name.name,
+            name.at,
+            mode,
+            layer,
+            condition,
+            text,
+            fields=self.fields,
+            path=self.sink.path,
+        )
+        if self.word("for") is not None:
+            amount = self.number("a duration after 'for'")
+            unit = self.word("s", "ms")
+            if unit is None:
+                self.fail("the unit of the duration, 's' or 'ms'")
+            rule.hold = amount / 1000 if unit == "ms" else amount
+        if self.word("hysteresis") is not None:
+            if mode != "while":
+                self.sink.error(
+                    "'hysteresis' applies to 'while' rules (an 'activate'/'deactivate' rule "
+                    "takes two rules with different thresholds)",
+                    self.line,
+                    self.tokens[self.i - 1].col,
+                )
+                raise _Stop
+            rule.hysteresis = self.number("the hysteresis margin")
+        if self.word("else") is not None:
+            if mode != "while":
+                self.sink.error(
+                    "'else' applies to 'while' rules", self.line, self.tokens[self.i - 1].col
+                )
+                raise _Stop
+            rule.otherwise = self.layer("the layer to activate when the condition fails")
+            if rule.otherwise.name == layer.name:
+                self.sink.error(
+                    f"'else {layer.name}' names the rule's own layer",
+                    self.line,
+                    rule.otherwise.at.col,
+                )
+                raise _Stop
+        if self.peek() is not None:
+            self.fail("the end of the rule ('for', 'hysteresis' or 'else' may follow)")
+        return rule
+
+    def condition(self) -> Condition:
+        start = self.at()
+        operands = [self.conjunct()]
+        while self.word("or") is not None:
+            operands.append(self.conjunct())
+        return operands[0] if len(operands) == 1 else BoolOp("or", tuple(operands), start)
+
+    def conjunct(self) -> Condition:
+        start = self.at()
+        operands = [self.negation()]
+        while self.word("and") is not None:
+            operands.append(self.negation())
+        return operands[0] if len(operands) == 1 else BoolOp("and", tuple(operands), start)
+
+    def negation(self) -> Condition:
+        start = self.at()
+        if self.word("not") is not None:
+            return Not(self.negation(), start)
+        token = self.peek()
+        if token is not None and token.text == "(":
+            self.i += 1
+            inner = self.condition()
+            token = self.peek()
+            if token is None or token.text != ")":
+                self.fail("')'")
+            self.i += 1
+            return inner
+        return self.comparison()
+
+    def comparison(self) -> Comparison:
+        start = self.at()
+        left = self.operand()
+        token = self.peek()
+        if token is not None and token.text in COMPARISONS:
+            self.i += 1
+            right = self.operand()
+            if isinstance(left, Literal) and isinstance(right, Literal):
+                self.sink.error(
+                    "a comparison of two constants: one side must be a field (TOPIC.FIELD)",
+                    start.line,
+                    start.col,
+                )
+                raise _Stop
+            return Comparison(left, token.text, right, start)
+        if isinstance(left, Literal):
+            self.sink.error(
+                "a condition needs a field (TOPIC.FIELD, e.g. battery.percentage < 20)",
+                start.line,
+                start.col,
+            )
+            raise _Stop
+        return Comparison(left, "", None, start)
+
+    def operand(self) -> Operand:
+        token = self.peek()
+        if token is None:
+            self.fail("a field (TOPIC.FIELD) or a constant")
+        assert token is not None
+        at = Position(self.line, token.col)
+        if token.kind == "field":
+            self.i += 1
+            topic, *path = token.text.split(".")
+            ref = FieldRef(topic, tuple(path), at)
+            self.fields.append(ref)
+            return ref
+        if token.kind == "number":
+            self.i += 1
+            value = float(token.text)
+            if not math.isfinite(value):
+                self.sink.error(f"{token.text} is not a finite number", at.line, at.col)
+                raise _Stop
+            return Literal(value, at)
+        if token.kind == "string":
+            self.i += 1
+            body = token.text[1:-1]
+            return Literal(bytes(body, "utf-8").decode("unicode_escape"), at)
+        if token.kind == "name" and token.text in ("true", "false"):
+            self.i += 1
+            return Literal(token.text == "true", at)
+        if token.kind == "name":
+            self.sink.error(
+                f"{token.text!r} is not a field: write TOPIC.FIELD (e.g. "
+                f"{token.text}.data for a std_msgs value on topic '{token.text}')",
+                at.line,
+                at.col,
+            )
+            raise _Stop
+        self.fail("a field (TOPIC.FIELD) or a constant")
+        raise AssertionError("unreachable")
+
+
+class _Stop(Exception):
+    """The rule has an error (already reported)."""
+
+
+def parse_rule(name: Ref, text: str, line: int, col: int, sink: DiagnosticSink) -> RuleDecl | None:
+    """The rule `text` (what follows `rule NAME:`, starting at `line`:`col` of the file);
+    errors go to `sink` with their position, and give None."""
+    parser = _RuleParser(text, line, col, sink)
+    if not parser.ok:
+        return None
+    try:
+        return parser.rule(name, text[: max(0, parser.end_col - col)].strip())
+    except _Stop:
+        return None
+
+
+def condition_text(condition: Condition) -> str:
+    """The condition written back (normalised spacing), for reasons and logs."""
+    if isinstance(condition, Not):
+        return f"not {_grouped(condition.operand)}"
+    if isinstance(condition, BoolOp):
+        return f" {condition.op} ".join(_grouped(c) for c in condition.operands)
+    left = _operand_text(condition.left)
+    if condition.right is None:
+        return left
+    return f"{left} {condition.op} {_operand_text(condition.right)}"
+
+
+def _grouped(condition: Condition) -> str:
+    text = condition_text(condition)
+    return f"({text})" if isinstance(condition, BoolOp) else text
+
+
+def _operand_text(operand: Operand) -> str:
+    if isinstance(operand, FieldRef):
+        return operand.text
+    if isinstance(operand.value, bool):
+        return "true" if operand.value else "false"
+    if isinstance(operand.value, float):
+        return f"{operand.value:g}"
+    return repr(operand.value)

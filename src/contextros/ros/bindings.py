@@ -1,0 +1,251 @@
+"""Layers that drive ROS, carried out by the Layer manager over standard ROS services.
+
+`parameter` declarations go through `/<node>/get_parameters` and `/<node>/set_parameters`
+(rcl_interfaces), `lifecycle` declarations through `/<node>/get_state` and
+`/<node>/change_state` (lifecycle_msgs): every ROS 2 node has the former, every managed node
+the latter, so the nodes need to know nothing of ContextROS and may be C++.
+
+A switch runs in a worker thread (blocking on the answers while the manager's executor
+keeps spinning and delivers them), and either completes or is rolled back: a parameter a
+node rejects, a node that does not answer, or a failed lifecycle transition undoes what the
+switch already did, in reverse order, and names node, parameter or transition and the reason.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Sequence
+from typing import Any
+
+from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.node import Node
+
+from contextros.bindings import Bindings, LifecycleChange, ParameterChange, Plan, transitions
+from contextros.language.bindings import ParameterValue as Value
+
+_PRIMARY = {
+    State.PRIMARY_STATE_UNCONFIGURED: "unconfigured",
+    State.PRIMARY_STATE_INACTIVE: "inactive",
+    State.PRIMARY_STATE_ACTIVE: "active",
+    State.PRIMARY_STATE_FINALIZED: "finalized",
+}
+_MAX_REASON = 300
+
+
+class BindingError(Exception):
+    """A switch's ROS side could not be done (already rolled back); the message says why."""
+
+
+def _printable(text: str) -> str:
+    """A reason that came from another node, fit for a message: printable, bounded."""
+    clean = "".join(c if c.isprintable() else "?" for c in str(text))
+    return clean if len(clean) <= _MAX_REASON else clean[:_MAX_REASON] + "..."
+
+
+def to_parameter_value(value: Value | None, like: Any = None) -> Any:
+    """A ParameterValue message; an integer goes to a double parameter as a double."""
+    message = ParameterValue()
+    if value is None:
+        return message  # PARAMETER_NOT_SET
+    if isinstance(value, bool):
+        message.type, message.bool_value = ParameterType.PARAMETER_BOOL, value
+    elif isinstance(value, int) and not (
+        like is not None and like.type == ParameterType.PARAMETER_DOUBLE
+    ):
+        message.type, message.integer_value = ParameterType.PARAMETER_INTEGER, value
+    elif isinstance(value, (int, float)):
+        message.type, message.double_value = ParameterType.PARAMETER_DOUBLE, float(value)
+    else:
+        message.type, message.string_value = ParameterType.PARAMETER_STRING, value
+    return message
+
+
+def shown(message: Any) -> str:
+    """A ParameterValue as text, for messages."""
+    kind = message.type
+    if kind == ParameterType.PARAMETER_BOOL:
+        return "true" if message.bool_value else "false"
+    if kind == ParameterType.PARAMETER_INTEGER:
+        return str(message.integer_value)
+    if kind == ParameterType.PARAMETER_DOUBLE:
+        return f"{message.double_value:g}"
+    if kind == ParameterType.PARAMETER_STRING:
+        return repr(message.string_value)
+    return "(not set)" if kind == ParameterType.PARAMETER_NOT_SET else f"(type {kind})"
+
+
+class BindingDriver:
+    """Applies a `Bindings` plan from one configuration to the next, with rollback."""
+
+    def __init__(self, node: Node, bindings: Bindings, *, call_timeout: float = 2.0) -> None:
+        self.node = node
+        self.bindings = bindings
+        self.call_timeout = call_timeout
+        # The configuration ROS reflects now (what the last completed switch was for).
+        self.applied: tuple[str, ...] = ()
+        # Values and states from before any layer touched them, to restore.
+        self._original_parameters: dict[tuple[str, str], Any] = {}
+        self._original_states: dict[str, str] = {}
+        self._clients: dict[tuple[str, str], Any] = {}
+        self._lock = threading.Lock()
+
+    # -- names --------------------------------------------------------------------------
+
+    def resolve(self, name: str) -> str:
+        """A declared node name, fully qualified: relative names in the manager's namespace."""
+        if name.startswith("/"):
+            return name
+        namespace = self.node.get_namespace().rstrip("/")
+        return f"{namespace}/{name.removeprefix('~/')}"
+
+    def plan(self, old: Sequence[str], new: Sequence[str]) -> Plan:
+        return self.bindings.plan(old, new, self.resolve)
+
+    # -- the switch (worker thread) -----------------------------------------------------
+
+    def switch(self, old: Sequence[str], new: Sequence[str]) -> None:
+        """Make ROS reflect `new` (coming from `old`); BindingError, rolled back, if not."""
+        plan = self.plan(old, new)
+        undo: list[tuple[str, Any]] = []
+        try:
+            for change in plan.parameters:
+                self._parameter(change, undo)
+            for lifecycle in plan.lifecycles:
+                self._lifecycle(lifecycle, undo)
+        except BindingError:
+            self._roll_back(undo)
+            raise
+        self.applied = tuple(new)
+
+    def _roll_back(self, undo: list[tuple[str, Any]]) -> None:
+        for kind, step in reversed(undo):
+            try:
+                if kind == "parameter":
+                    node, name, previous = step
+                    self._set(node, name, previous)
+                else:
+                    node, path = step
+                    for transition_id, label in path:
+                        self._change_state(node, transition_id, label)
+            except BindingError as error:
+                self.node.get_logger().error(f"rolling back: {error}")
+
+    def _parameter(self, change: ParameterChange, undo: list[tuple[str, Any]]) -> None:
+        key = change.key
+        current = self._get(change.node, change.name)
+        if key not in self._original_parameters:
+            self._original_parameters[key] = current
+        if change.restore:
+            target = self._original_parameters.pop(key)
+            if target.type == ParameterType.PARAMETER_NOT_SET:
+                return  # it had no value before: leave the last one
+        else:
+            target = to_parameter_value(change.value, like=current)
+        self._set(change.node, change.name, target, change.layer)
+        undo.append(("parameter", (change.node, change.name, current)))
+
+    def _lifecycle(self, change: LifecycleChange, undo: list[tuple[str, Any]]) -> None:
+        current = self._get_state(change.node)
+        if change.node not in self._original_states:
+            self._original_states[change.node] = current
+        wanted = self._original_states.pop(change.node) if change.restore else change.state
+        assert wanted is not None
+        try:
+            path = transitions(current, wanted)
+        except ValueError as error:
+            raise BindingError(f"lifecycle node {change.node}: {error}") from None
+        done: list[tuple[int, str]] = []
+        for transition_id, label in path:
+            try:
+                self._change_state(change.node, transition_id, label, change.layer, current)
+            except BindingError:
+                if done:
+                    undo.append(("lifecycle", (change.node, _reverse(done))))
+                raise
+            done.append((transition_id, label))
+        if done:
+            undo.append(("lifecycle", (change.node, _reverse(done))))
+
+    # -- service calls ------------------------------------------------------------------
+
+    def _client(self, node: str, kind: str, service_type: Any) -> Any:
+        with self._lock:
+            client = self._clients.get((node, kind))
+            if client is None:
+                client = self.node.create_client(service_type, f"{node}/{kind}")
+                self._clients[(node, kind)] = client
+        return client
+
+    def _call(self, node: str, kind: str, service_type: Any, request: Any, what: str) -> Any:
+        client = self._client(node, kind, service_type)
+        if not client.wait_for_service(timeout_sec=self.call_timeout):
+            raise BindingError(f"node {node} does not answer on {node}/{kind} ({what})")
+        future = client.call_async(request)
+        finished = threading.Event()
+        future.add_done_callback(lambda _: finished.set())
+        if not finished.wait(self.call_timeout):
+            client.remove_pending_request(future)
+            raise BindingError(f"node {node} did not answer {what} within {self.call_timeout:g} s")
+        response = future.result()
+        if response is None:
+            raise BindingError(f"node {node}: {what} failed ({future.exception()})")
+        return response
+
+    def _get(self, node: str, name: str) -> Any:
+        response = self._call(
+            node,
+            "get_parameters",
+            GetParameters,
+            GetParameters.Request(names=[name]),
+            f"reading parameter {name}",
+        )
+        values = list(response.values)
+        return values[0] if len(values) == 1 else ParameterValue()
+
+    def _set(self, node: str, name: str, value: Any, layer: str = "") -> None:
+        request = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
+        what = f"setting parameter {name} to {shown(value)}"
+        response = self._call(node, "set_parameters", SetParameters, request, what)
+        results = list(response.results)
+        if len(results) != 1 or not results[0].successful:
+            reason = _printable(results[0].reason) if results else "no result"
+            by = f" (for layer {layer})" if layer else ""
+            raise BindingError(
+                f"node {node} rejected parameter {name} = {shown(value)}{by}: "
+                f"{reason or 'no reason given'}"
+            )
+
+    def _get_state(self, node: str) -> str:
+        response = self._call(
+            node, "get_state", GetState, GetState.Request(), "its lifecycle state"
+        )
+        state = _PRIMARY.get(response.current_state.id)
+        if state is None:
+            label = _printable(response.current_state.label)
+            raise BindingError(f"lifecycle node {node} is in transition state {label!r}")
+        return state
+
+    def _change_state(
+        self, node: str, transition_id: int, label: str, layer: str = "", current: str = ""
+    ) -> None:
+        request = ChangeState.Request(transition=Transition(id=transition_id, label=label))
+        response = self._call(node, "change_state", ChangeState, request, f"transition {label}")
+        if not response.success:
+            by = f" (for layer {layer})" if layer else ""
+            state = f" from {current}" if current else ""
+            raise BindingError(f"lifecycle node {node}: transition {label}{state} failed{by}")
+
+
+_REVERSE = {
+    "configure": (2, "cleanup"),
+    "activate": (4, "deactivate"),
+    "deactivate": (3, "activate"),
+    "cleanup": (1, "configure"),
+}
+
+
+def _reverse(done: list[tuple[int, str]]) -> list[tuple[int, str]]:
+    return [_REVERSE[label] for _, label in reversed(done)]

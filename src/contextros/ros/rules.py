@@ -1,0 +1,200 @@
+"""Context rules inside the Layer manager: topics bound at run time, firings as commands.
+
+Each topic a rule reads is resolved in the manager's namespace; its message type is taken
+from the ROS graph once a publisher appears, the rules' fields are checked against that type
+(an error names file:line:col and the rule stays off) and only then is the topic subscribed,
+so no message is ever evaluated against a field that does not exist. See docs/rules.md.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+import time
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from contextros.language.diagnostics import Diagnostic
+from contextros.rules import Firing, RuleEngine, RuleSet
+from contextros.rules.ruleset import FieldKind
+
+# Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
+RULE_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
+)
+_TYPE_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z_][A-Za-z0-9_]*)$")
+_NESTED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z_][A-Za-z0-9_]*)$")
+_NUMBERS = {
+    "boolean",
+    "octet",
+    "char",
+    "byte",
+    "float",
+    "double",
+    "long double",
+    "int8",
+    "uint8",
+    "int16",
+    "uint16",
+    "int32",
+    "uint32",
+    "int64",
+    "uint64",
+}
+
+
+def message_class(type_name: str) -> Any:
+    """The Python class of a message type named by the graph ('sensor_msgs/msg/NavSatFix').
+    The name comes from the network: only the `pkg/msg/Name` form is imported, from
+    `pkg.msg`; anything else is a ValueError naming it."""
+    match = _TYPE_NAME.match(type_name)
+    if match is None:
+        raise ValueError(f"{type_name!r} is not a message type name (pkg/msg/Name)")
+    package, name = match.groups()
+    try:
+        module = importlib.import_module(f"{package}.msg")
+    except ImportError as error:
+        raise ValueError(f"message package {package!r} is not installed here: {error}") from error
+    cls = getattr(module, name, None)
+    if cls is None or not hasattr(cls, "get_fields_and_field_types"):
+        raise ValueError(f"{package}.msg has no message type {name!r}")
+    return cls
+
+
+def field_kind(cls: Any, path: tuple[str, ...]) -> FieldKind:
+    """What `path` is in message class `cls`: number, string, bool, message, array or None."""
+    kind: str | None = None
+    for index, name in enumerate(path):
+        fields: dict[str, str] = cls.get_fields_and_field_types()
+        ros_type = fields.get(name)
+        if ros_type is None:
+            return None
+        if ros_type.startswith("sequence<") or "[" in ros_type:
+            kind = "array"
+        elif ros_type == "boolean":
+            kind = "bool"
+        elif ros_type in _NUMBERS:
+            kind = "number"
+        elif ros_type.startswith(("string", "wstring")):
+            kind = "string"
+        elif nested := _NESTED.match(ros_type):
+            kind = "message"
+            cls = message_class(f"{nested.group(1)}/msg/{nested.group(2)}")
+        else:
+            kind = "array"  # anything else is not comparable
+        if kind != "message" and index < len(path) - 1:
+            return None  # a plain value has no fields
+    return kind
+
+
+class RuleRunner:
+    """Binds a rule set to the topics of `node` (the manager) and hands firings to `submit`."""
+
+    def __init__(
+        self,
+        node: Node,
+        rules: RuleSet,
+        submit: Callable[[Firing], object],
+        relations: Callable[[], Any],
+        *,
+        discovery_period: float = 0.2,
+    ) -> None:
+        self.node = node
+        self.rules = rules
+        self.engine = RuleEngine(rules)
+        self._submit = submit
+        self._relations = relations
+        self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
+        self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
+        self._subscriptions: list[Any] = []
+        self.errors: list[Diagnostic] = []
+        # Firings the manager refused (a relation, say): tried again after each new state
+        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings").
+        self._refused: dict[str, Firing] = {}
+        self._discovery = node.create_timer(discovery_period, self._discover)
+        for rule in rules.rules:
+            node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
+        self._discover()
+
+    # -- binding ------------------------------------------------------------------------
+
+    def _discover(self) -> None:
+        if not self._unbound:
+            self._discovery.cancel()
+            return
+        graph = dict(self.node.get_topic_names_and_types())
+        for topic, resolved in list(self._unbound.items()):
+            types = graph.get(resolved)
+            if not types:
+                continue
+            if len(types) != 1:
+                self._refuse(topic, ", ".join(types), f"topic {resolved} has several types")
+                continue
+            self._bind(topic, resolved, types[0])
+
+    def _refuse(self, topic: str, type_name: str, why: str) -> None:
+        if self._failed.get(topic) != type_name:
+            self.node.get_logger().error(f"rules on {topic} stay off: {why}")
+            self._failed[topic] = type_name
+
+    def _bind(self, topic: str, resolved: str, type_name: str) -> None:
+        try:
+            cls = message_class(type_name)
+        except ValueError as error:
+            self._refuse(topic, type_name, f"topic {resolved}: {error}")
+            return
+        problems = self.rules.check_fields(topic, lambda path: field_kind(cls, path), type_name)
+        if problems:
+            self.errors += problems
+            self._failed[topic] = type_name
+            del self._unbound[topic]
+            for problem in problems:
+                self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
+            return
+        del self._unbound[topic]
+        self._subscriptions.append(
+            self.node.create_subscription(
+                cls, resolved, lambda msg, topic=topic: self._on_message(topic, msg), RULE_QOS
+            )
+        )
+        self.node.get_logger().info(f"rules read {resolved} ({type_name})")
+
+    # -- evaluation ---------------------------------------------------------------------
+
+    def _on_message(self, topic: str, message: Any) -> None:
+        if topic in self._failed:
+            return
+        self._fire(self.engine.on_message(topic, message, time.monotonic()))
+
+    def tick(self) -> None:
+        self._fire(self.engine.tick(time.monotonic()))
+
+    def refused(self, firing: Firing) -> None:
+        """The manager refused `firing`: keep it for the next state (unless newer)."""
+        self._refused.setdefault(firing.rule, firing)
+
+    def retry(self) -> None:
+        """A new state: the refused firings may pass now (in file order)."""
+        waiting = sorted(self._refused.values(), key=lambda f: f.priority)
+        self._refused.clear()
+        for firing in waiting:
+            self._submit(firing)
+
+    def _fire(self, firings: list[Firing]) -> None:
+        if not firings:
+            return
+        if len(firings) > 1:
+            from contextros.rules import resolve
+
+            firings, overridden = resolve(firings, self._relations())
+            for firing in overridden:
+                self.node.get_logger().warning(
+                    f"{firing.requester} ({firing.reason}) overridden by a rule declared "
+                    "before it (contradicting targets)"
+                )
+        for firing in firings:
+            self._refused.pop(firing.rule, None)  # superseded by the rule's new value
+            self._submit(firing)

@@ -1,0 +1,238 @@
+"""Rule evaluation as a pure state machine: messages and time in, activations out.
+
+No ROS inside (sans-I/O, like the manager's protocol): the adapter feeds the latest message
+of each topic and the clock, and turns each `Firing` into an ordinary activation command.
+Conditions are compiled once into closures over `operator` functions, so an evaluation is a
+few attribute reads and comparisons (benchmarks/rules.py measures it).
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from contextros.language.rules import (
+    BoolOp,
+    Comparison,
+    Condition,
+    FieldRef,
+    Literal,
+    Not,
+    RuleDecl,
+    condition_text,
+)
+from contextros.rules.ruleset import RuleSet
+
+_OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
+    "<": operator.lt,
+    "<=": operator.le,
+    ">": operator.gt,
+    ">=": operator.ge,
+    "==": operator.eq,
+    "!=": operator.ne,
+}
+# A 'while' rule with hysteresis, once true, stays true until a threshold is passed by the
+# margin: `x < 20 hysteresis 5` holds until x >= 25 (the sign per operator, flipped by `not`).
+_RELAX = {"<": 1.0, "<=": 1.0, ">": -1.0, ">=": -1.0}
+
+Latest = Mapping[str, Any]
+Evaluator = Callable[[Latest], bool]
+
+
+class _NoData(Exception):
+    """A topic the condition reads has not delivered a message yet."""
+
+
+@dataclass(frozen=True)
+class Firing:
+    """A rule acting: activate and deactivate these layers, for this reason."""
+
+    rule: str
+    activate: tuple[str, ...]
+    deactivate: tuple[str, ...]
+    reason: str
+    priority: int  # the rule's place in its files: the first wins a contradiction
+
+    @property
+    def requester(self) -> str:
+        return f"rule {self.rule}"
+
+
+def _operand(operand: FieldRef | Literal) -> Callable[[Latest], Any]:
+    if isinstance(operand, Literal):
+        value = operand.value
+        return lambda latest: value
+    topic, getter = operand.topic, operator.attrgetter(".".join(operand.path))
+
+    def read(latest: Latest) -> Any:
+        message = latest.get(topic)
+        if message is None:
+            raise _NoData(topic)
+        return getter(message)
+
+    return read
+
+
+def compile_condition(condition: Condition, margin: float = 0.0, sign: float = 1.0) -> Evaluator:
+    """A closure computing `condition` from the latest message of each topic. With `margin`,
+    thresholds against numbers move by it so that the condition holds longer (hysteresis)."""
+    if isinstance(condition, Not):
+        inner = compile_condition(condition.operand, margin, -sign)
+        return lambda latest: not inner(latest)
+    if isinstance(condition, BoolOp):
+        parts = [compile_condition(c, margin, sign) for c in condition.operands]
+        combined = parts[0]
+        for part in parts[1:]:  # nested closures short-circuit like the Python operators
+            combined = _both(combined, part) if condition.op == "and" else _either(combined, part)
+        return combined
+    return _comparison(condition, margin, sign)
+
+
+def _both(first: Evaluator, second: Evaluator) -> Evaluator:
+    return lambda latest: first(latest) and second(latest)
+
+
+def _either(first: Evaluator, second: Evaluator) -> Evaluator:
+    return lambda latest: first(latest) or second(latest)
+
+
+def _comparison(condition: Comparison, margin: float, sign: float) -> Evaluator:
+    left = _operand(condition.left)
+    if condition.right is None:
+        return lambda latest: bool(left(latest))
+    op, right_operand = condition.op, condition.right
+    if margin and isinstance(right_operand, Literal) and isinstance(right_operand.value, float):
+        shifted = right_operand.value + _RELAX.get(op, 0.0) * sign * margin
+        right_operand = Literal(shifted, right_operand.at)
+    elif margin and isinstance(condition.left, Literal) and isinstance(condition.left.value, float):
+        mirrored = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
+        shifted = condition.left.value + _RELAX.get(mirrored, 0.0) * sign * margin
+        left = _operand(Literal(shifted, condition.left.at))
+    right = _operand(right_operand)
+    compare = _OPERATORS[op]
+    return lambda latest: compare(left(latest), right(latest))
+
+
+class _RuleState:
+    """One rule's settled value and the candidate value waiting out the hold time."""
+
+    def __init__(self, rule: RuleDecl, where: str, priority: int) -> None:
+        self.rule = rule
+        self.where = where
+        self.priority = priority
+        self.strict = compile_condition(rule.condition)
+        self.relaxed = (
+            compile_condition(rule.condition, rule.hysteresis)
+            if rule.hysteresis and rule.mode == "while"
+            else self.strict
+        )
+        self.text = condition_text(rule.condition)
+        self.settled: bool | None = None
+        self.candidate: bool | None = None
+        self.since = 0.0
+
+    def evaluate(self, latest: Latest, now: float) -> Firing | None:
+        try:
+            value = (self.relaxed if self.settled else self.strict)(latest)
+        except _NoData:
+            return None
+        if value == self.settled:
+            self.candidate = None
+            return None
+        if value != self.candidate:
+            self.candidate, self.since = value, now
+        return self.tick(now)
+
+    def tick(self, now: float) -> Firing | None:
+        # (a nanosecond of slack: a clock's float sums must not cost a whole period)
+        if self.candidate is None or now - self.since < self.rule.hold - 1e-9:
+            return None
+        self.settled, self.candidate = self.candidate, None
+        return self._fire(self.settled)
+
+    def _fire(self, holds: bool) -> Firing | None:
+        rule = self.rule
+        held = f" for {rule.hold:g} s" if rule.hold else ""
+        truth = f"{self.text}{held}" if holds else f"not ({self.text}){held}"
+        reason = f"{truth} ({self.where})"
+        layer = rule.layer.name
+        if rule.mode == "activate":
+            return Firing(rule.name, (layer,), (), reason, self.priority) if holds else None
+        if rule.mode == "deactivate":
+            return Firing(rule.name, (), (layer,), reason, self.priority) if holds else None
+        if holds:
+            return Firing(rule.name, (layer,), (), reason, self.priority)
+        if rule.otherwise is not None:
+            return Firing(rule.name, (rule.otherwise.name,), (), reason, self.priority)
+        return Firing(rule.name, (), (layer,), reason, self.priority)
+
+
+class RuleEngine:
+    """Evaluates a rule set: `on_message` for each message, `tick` as time passes."""
+
+    def __init__(self, rules: RuleSet) -> None:
+        self.rules = rules
+        self._states = [
+            _RuleState(rule, rules.where(rule), index) for index, rule in enumerate(rules.rules)
+        ]
+        self._latest: dict[str, Any] = {}
+        self._by_topic: dict[str, list[_RuleState]] = {}
+        for state in self._states:
+            for topic in dict.fromkeys(ref.topic for ref in state.rule.fields):
+                self._by_topic.setdefault(topic, []).append(state)
+
+    def topics(self) -> tuple[str, ...]:
+        return tuple(self._by_topic)
+
+    def on_message(self, topic: str, message: Any, now: float) -> list[Firing]:
+        """The latest message on `topic`: evaluate the rules that read it."""
+        self._latest[topic] = message
+        firings = []
+        for state in self._by_topic.get(topic, ()):
+            firing = state.evaluate(self._latest, now)
+            if firing is not None:
+                firings.append(firing)
+        return firings
+
+    def tick(self, now: float) -> list[Firing]:
+        """Rules whose condition kept its new value for the hold time, without a message."""
+        firings = []
+        for state in self._states:
+            if state.candidate is not None:
+                firing = state.tick(now)
+                if firing is not None:
+                    firings.append(firing)
+        return firings
+
+
+Relations = Mapping[str, tuple[frozenset[str], frozenset[str]]]  # layer -> (groups, excludes)
+
+
+def resolve(firings: list[Firing], relations: Relations) -> tuple[list[Firing], list[Firing]]:
+    """Firings of one evaluation that contradict an earlier-declared one are overridden:
+    the same layer on and off, two members of an exclusive group, two excluding layers.
+    Returns (kept, overridden); deterministic (file order)."""
+    kept: list[Firing] = []
+    overridden: list[Firing] = []
+    for firing in sorted(firings, key=lambda f: f.priority):
+        if any(_contradict(firing, earlier, relations) for earlier in kept):
+            overridden.append(firing)
+        else:
+            kept.append(firing)
+    return kept, overridden
+
+
+def _contradict(a: Firing, b: Firing, relations: Relations) -> bool:
+    if set(a.activate) & set(b.deactivate) or set(a.deactivate) & set(b.activate):
+        return True
+    for x in a.activate:
+        groups_x, excludes_x = relations.get(x, (frozenset(), frozenset()))
+        for y in b.activate:
+            if x == y:
+                continue
+            groups_y, excludes_y = relations.get(y, (frozenset(), frozenset()))
+            if groups_x & groups_y or y in excludes_x or x in excludes_y:
+                return True
+    return False

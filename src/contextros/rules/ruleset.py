@@ -1,0 +1,324 @@
+"""A set of context rules, from layer files or the Python API, with its static checks."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
+from contextros.language.flavours import parse_with_diagnostics
+from contextros.language.rules import (
+    BoolOp,
+    Comparison,
+    Condition,
+    FieldRef,
+    Literal,
+    Not,
+    RuleDecl,
+    parse_rule,
+)
+from contextros.language.syntax import Position, Ref
+
+# What a message field is, as far as a condition cares: "number", "string", "bool",
+# "message" (has fields of its own), "array" (not comparable), or None (no such field).
+FieldKind = str | None
+# Looks up the kind of a field path in the message type of one topic.
+FieldLookup = Callable[[tuple[str, ...]], FieldKind]
+
+
+@dataclass(frozen=True)
+class Rule:
+    """A rule of the Python API: `Rule("Battery", "LowBattery while battery.percentage < 20
+    for 2 s hysteresis 5")`, the same text a layer file takes after `rule NAME:`."""
+
+    name: str
+    text: str
+
+
+class RuleSet:
+    """Parsed rules plus where they came from, so that every later error (a field the topic's
+    message type does not have) still points at file:line:col with a caret."""
+
+    def __init__(self, rules: Sequence[RuleDecl], sources: Mapping[str, str]) -> None:
+        self.rules = tuple(rules)
+        self._sources = dict(sources)  # path -> text
+
+    # -- construction -------------------------------------------------------------------
+
+    @classmethod
+    def from_files(
+        cls, paths: Iterable[str | os.PathLike[str]], language: str | None = None
+    ) -> RuleSet:
+        """The rules of layer files (either flavour); LayerSyntaxError lists every error."""
+        rules: list[RuleDecl] = []
+        sources: dict[str, str] = {}
+        errors: list[Diagnostic] = []
+        for path in paths:
+            name = os.fspath(path)
+            try:
+                source = Path(name).read_text(encoding="utf-8")
+            except (OSError, UnicodeDecodeError) as error:
+                sink = DiagnosticSink(name, "")
+                sink.error(f"cannot read the layer file: {error}", 1, 1)
+                errors += sink.items
+                continue
+            layer_file, found = parse_with_diagnostics(source, name, language)
+            errors += [d for d in found if d.is_error]
+            rules += layer_file.rules
+            sources[name] = source
+        result = cls(rules, sources)
+        errors += [d for d in result.check() if d.is_error]
+        if errors:
+            raise LayerSyntaxError(errors)
+        return result
+
+    @classmethod
+    def from_rules(cls, rules: Iterable[Rule], path: str = "<rules>") -> RuleSet:
+        """Rules of the Python API, each read as the line `rule NAME: TEXT` of `path`."""
+        rules = list(rules)
+        decls: list[RuleDecl] = []
+        source = "".join(f"rule {rule.name}: {rule.text}\n" for rule in rules)
+        sink = DiagnosticSink(path, source)
+        for row, rule in enumerate(rules, start=1):
+            if not rule.name.isidentifier():
+                sink.error(f"rule name {rule.name!r} is not an identifier", row, 6)
+                continue
+            name = Ref(rule.name, Position(row, 6))
+            col = len(f"rule {rule.name}: ") + 1
+            decl = parse_rule(name, rule.text, row, col, sink)
+            if decl is not None:
+                decls.append(decl)
+        result = cls(decls, {path: source})
+        errors = [d for d in [*sink.items, *result.check()] if d.is_error]
+        if errors:
+            raise LayerSyntaxError(errors)
+        return result
+
+    # -- positions ----------------------------------------------------------------------
+
+    def where(self, rule: RuleDecl) -> str:
+        return f"{Path(rule.path).name}:{rule.at.line}"
+
+    def sink_for(self, rule: RuleDecl) -> DiagnosticSink:
+        return DiagnosticSink(rule.path, self._sources.get(rule.path, ""))
+
+    # -- static checks ------------------------------------------------------------------
+
+    def topics(self) -> tuple[str, ...]:
+        """Every topic the rules read, in order of first mention."""
+        return tuple(dict.fromkeys(ref.topic for rule in self.rules for ref in rule.fields))
+
+    def check(
+        self, relations: Mapping[str, tuple[frozenset[str], frozenset[str]]] | None = None
+    ) -> list[Diagnostic]:
+        """Duplicate names, and pairs of rules that may hold at once while switching to
+        contradicting targets (the same layer on and off, two layers of one group, or two
+        that exclude each other). `relations` maps a layer to (its groups, what it
+        excludes); without it only the same-layer contradiction is known."""
+        found: list[Diagnostic] = []
+        seen: dict[str, RuleDecl] = {}
+        for rule in self.rules:
+            first = seen.get(rule.name)
+            if first is not None:
+                sink = self.sink_for(rule)
+                sink.error(
+                    f"rule {rule.name!r} is already declared at {self.where(first)}",
+                    rule.at.line,
+                    rule.at.col,
+                )
+                found += sink.items
+            seen.setdefault(rule.name, rule)
+        for index, first in enumerate(self.rules):
+            for second in self.rules[index + 1 :]:
+                clash = _contradiction(first, second, relations or {})
+                if clash:
+                    sink = self.sink_for(second)
+                    sink.warning(
+                        f"rules {first.name} ({self.where(first)}) and {second.name} may hold at "
+                        f"the same time and {clash}: when both fire together, {first.name} "
+                        "(declared first) wins and the other is logged as overridden; make "
+                        "their conditions exclusive",
+                        second.at.line,
+                        second.at.col,
+                    )
+                    found += sink.items
+        return found
+
+    def check_fields(self, topic: str, lookup: FieldLookup, type_name: str) -> list[Diagnostic]:
+        """Errors for fields of `topic` its message type (`type_name`) does not have, or that
+        a condition compares with a constant of another kind."""
+        found: list[Diagnostic] = []
+        for rule in self.rules:
+            sink = self.sink_for(rule)
+            for comparison in _comparisons(rule.condition):
+                operands = [comparison.left, comparison.right]
+                refs = [o for o in operands if isinstance(o, FieldRef) and o.topic == topic]
+                for ref in refs:
+                    kind = lookup(ref.path)
+                    if kind is None:
+                        sink.error(
+                            f"{type_name} (the type of topic '{topic}') has no field "
+                            f"'{'.'.join(ref.path)}'",
+                            ref.at.line,
+                            ref.at.col,
+                        )
+                        continue
+                    problem = _kind_problem(kind, comparison, ref)
+                    if problem:
+                        sink.error(
+                            f"'{ref.text}' is a {kind} field of {type_name}: {problem}",
+                            ref.at.line,
+                            ref.at.col,
+                        )
+            found += sink.items
+        return found
+
+
+def _comparisons(condition: Condition) -> list[Comparison]:
+    if isinstance(condition, Comparison):
+        return [condition]
+    if isinstance(condition, Not):
+        return _comparisons(condition.operand)
+    return [c for operand in condition.operands for c in _comparisons(operand)]
+
+
+def _kind_problem(kind: str, comparison: Comparison, ref: FieldRef) -> str:
+    if kind in ("message", "array"):
+        return "a condition compares plain values (name one of its fields)"
+    other = comparison.right if comparison.left is ref else comparison.left
+    if other is None:
+        return "" if kind == "bool" else "a condition on its own must be a bool field"
+    if isinstance(other, FieldRef):
+        return ""  # checked when both types are known: compared as values at run time
+    value = other.value
+    expected = (
+        "bool" if isinstance(value, bool) else "number" if isinstance(value, float) else "string"
+    )
+    if kind == "number" and expected == "bool":
+        return ""  # a bool constant against a number: Python compares 0/1; allowed
+    if expected != kind:
+        return f"it cannot be compared with the {expected} {_shown(other)}"
+    if kind in ("string", "bool") and comparison.op not in ("==", "!="):
+        return f"a {kind} is compared with == or != only"
+    return ""
+
+
+def _shown(literal: Literal) -> str:
+    value = literal.value
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return f"{value:g}" if isinstance(value, float) else repr(value)
+
+
+# -- contradictions -----------------------------------------------------------------------
+
+Outcome = tuple[str, str]  # ("on" | "off", layer)
+
+
+def _outcomes(rule: RuleDecl) -> list[tuple[Outcome, Condition | None, bool]]:
+    """(what happens, the condition under which, whether that condition is negated)."""
+    if rule.mode == "activate":
+        return [(("on", rule.layer.name), rule.condition, False)]
+    if rule.mode == "deactivate":
+        return [(("off", rule.layer.name), rule.condition, False)]
+    otherwise = ("on", rule.otherwise.name) if rule.otherwise else ("off", rule.layer.name)
+    return [(("on", rule.layer.name), rule.condition, False), (otherwise, rule.condition, True)]
+
+
+def _contradiction(
+    first: RuleDecl,
+    second: RuleDecl,
+    relations: Mapping[str, tuple[frozenset[str], frozenset[str]]],
+) -> str:
+    for a, cond_a, neg_a in _outcomes(first):
+        for b, cond_b, neg_b in _outcomes(second):
+            why = _clashes(a, b, relations)
+            if why and not _disjoint(cond_a, neg_a, cond_b, neg_b):
+                return why
+    return ""
+
+
+def _clashes(
+    a: Outcome, b: Outcome, relations: Mapping[str, tuple[frozenset[str], frozenset[str]]]
+) -> str:
+    (verb_a, layer_a), (verb_b, layer_b) = a, b
+    if layer_a == layer_b:
+        return "" if verb_a == verb_b else f"one activates {layer_a} while the other deactivates it"
+    if verb_a == verb_b == "on":
+        groups_a, excludes_a = relations.get(layer_a, (frozenset(), frozenset()))
+        groups_b, excludes_b = relations.get(layer_b, (frozenset(), frozenset()))
+        shared = groups_a & groups_b
+        if shared:
+            return (
+                f"activate {layer_a} and {layer_b}, both of exclusive group {sorted(shared)[0]!r}"
+            )
+        if layer_b in excludes_a or layer_a in excludes_b:
+            return f"activate {layer_a} and {layer_b}, which exclude each other"
+    return ""
+
+
+Interval = tuple[float, bool, float, bool]  # low, low inclusive, high, high inclusive
+
+
+def _constraints(condition: Condition | None, negated: bool) -> dict[str, Interval] | None:
+    """The condition as one interval per numeric field, if it is a conjunction of
+    comparisons of fields with numbers (else None: nothing is known)."""
+    if condition is None:
+        return None
+    if isinstance(condition, Not):
+        return _constraints(condition.operand, not negated)
+    if isinstance(condition, BoolOp):
+        if (condition.op == "and") == negated:  # an 'or', or a negated 'and'
+            return None
+        merged: dict[str, Interval] = {}
+        for operand in condition.operands:
+            part = _constraints(operand, negated)
+            if part is None:
+                continue  # a conjunct we cannot read only weakens what we know: fine
+            for key, interval in part.items():
+                merged[key] = _intersect(merged[key], interval) if key in merged else interval
+        return merged
+    left, op, right = condition.left, condition.op, condition.right
+    if isinstance(right, FieldRef) and isinstance(left, Literal):
+        left, right = right, left
+        op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
+    if not (isinstance(left, FieldRef) and isinstance(right, Literal)):
+        return None
+    if not isinstance(right.value, float) or isinstance(right.value, bool):
+        return None  # strings and bools: not intervals
+    if negated:
+        op = {"<": ">=", "<=": ">", ">": "<=", ">=": "<", "==": "!=", "!=": "=="}[op]
+    value, inf = right.value, float("inf")
+    intervals = {
+        "<": (-inf, False, value, False),
+        "<=": (-inf, False, value, True),
+        ">": (value, False, inf, False),
+        ">=": (value, True, inf, False),
+        "==": (value, True, value, True),
+    }
+    if op not in intervals:
+        return None
+    return {left.text: intervals[op]}
+
+
+def _intersect(a: Interval, b: Interval) -> Interval:
+    low = max((a[0], a[1]), (b[0], b[1]), key=lambda edge: (edge[0], not edge[1]))
+    high = min((a[2], a[3]), (b[2], b[3]), key=lambda edge: (edge[0], edge[1]))
+    return (low[0], low[1], high[0], high[1])
+
+
+def _empty(interval: Interval) -> bool:
+    low, low_in, high, high_in = interval
+    return low > high or (low == high and not (low_in and high_in))
+
+
+def _disjoint(a: Condition | None, neg_a: bool, b: Condition | None, neg_b: bool) -> bool:
+    """True only when the two conditions provably cannot hold at once."""
+    if a is b and a is not None and neg_a != neg_b:
+        return True
+    first, second = _constraints(a, neg_a), _constraints(b, neg_b)
+    if first is None or second is None:
+        return False
+    return any(_empty(_intersect(first[key], second[key])) for key in first.keys() & second.keys())

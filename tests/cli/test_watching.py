@@ -1,0 +1,57 @@
+"""`contextros watch`'s logic, driven in every order the messages may arrive in.
+
+The flaky `tests/ros/test_cli.py::test_watch_streams_switches_with_latency` (issue 12)
+saw `nodes == 1` with two acknowledging nodes: a node's status for the new epoch reached
+the watch before the state message itself, and the old code counted only the nodes
+still pending when the state arrived. The code was wrong, not the test.
+"""
+
+from __future__ import annotations
+
+from contextros.cli.watching import SwitchWatch
+
+
+def watch_with_two_nodes() -> SwitchWatch:
+    watch = SwitchWatch(started=100.0)
+    watch.state(4, ["Indoor"], "r", "", published=50.0, wall=100.0, now=1.0)
+    for node in ("/a", "/b"):
+        watch.status(node, 4, leaving=False, wall=100.0, now=1.0)
+    return watch
+
+
+def test_a_status_that_overtakes_its_state_still_counts_the_node() -> None:
+    watch = watch_with_two_nodes()
+    early = watch.status("/a", 5, leaving=False, wall=101.0, now=2.0)
+    assert early == []
+    records = watch.state(5, ["Night"], "r", "", published=100.999, wall=101.001, now=2.0)
+    assert [r["event"] for r in records] == ["state"]
+    records = watch.status("/b", 5, leaving=False, wall=101.002, now=2.0)
+    assert records == [{"event": "applied", "epoch": 5, "nodes": 2, "latency_ms": 3.0}]
+
+
+def test_both_statuses_before_the_state_report_applied_by_two_at_once() -> None:
+    watch = watch_with_two_nodes()
+    watch.status("/a", 5, leaving=False, wall=101.0, now=2.0)
+    watch.status("/b", 5, leaving=False, wall=101.0, now=2.0)
+    records = watch.state(5, ["Night"], "r", "", published=100.999, wall=101.001, now=2.0)
+    assert [r["event"] for r in records] == ["state", "applied"]
+    assert records[1]["nodes"] == 2
+
+
+def test_the_replayed_current_state_carries_its_age_not_a_latency() -> None:
+    watch = SwitchWatch(started=1000.0)
+    (record,) = watch.state(3, [], "m", "", published=988.314, wall=1000.0, now=0.0)
+    assert record["event"] == "current" and record["replayed"] is True
+    assert record["age_s"] == 11.686 and "delivery_ms" not in record
+    (fresh, applied) = watch.state(4, ["A"], "r", "", published=1000.5, wall=1000.502, now=1.0)
+    assert fresh["replayed"] is False and fresh["delivery_ms"] == 2.0
+    assert applied["nodes"] == 0  # nobody live yet
+
+
+def test_a_node_leaving_is_not_waited_for() -> None:
+    watch = watch_with_two_nodes()
+    watch.state(5, ["Night"], "r", "", published=101.0, wall=101.0, now=2.0)
+    assert watch.status("/a", 5, leaving=False, wall=101.0, now=2.0) == []
+    records = watch.status("/b", 4, leaving=True, wall=101.0, now=2.0)
+    assert records[0] == {"event": "node-left", "node": "/b"}
+    assert records[1]["event"] == "applied" and records[1]["nodes"] == 1

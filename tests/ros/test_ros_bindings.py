@@ -1,0 +1,180 @@
+"""Layers that drive ROS: a layer sets parameters of ordinary nodes and requires lifecycle
+states; the switch is acknowledged only once they are done, and refused (nothing changed)
+when a node rejects a parameter or a transition fails."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+import rclpy
+from lifecycle_msgs.srv import GetState
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.node import Node
+
+from contextros.ros import LayerClient
+from tests.ros.processes import HERE, ProcessGroup
+from tests.ros.system import LIVENESS, settle, wait_registry
+
+LAYERS = """\
+parameter Slow: base max_speed = 0.3
+parameter Fast: base max_speed = 9.0
+lifecycle Outdoor: propeller active
+lifecycle Indoor: /propeller inactive
+"""
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Iterator[ProcessGroup]:
+    layers = tmp_path_factory.mktemp("bindings") / "robot.layers"
+    layers.write_text(LAYERS, encoding="utf-8")
+    group = ProcessGroup()
+    try:
+        plain = group.start("plain nodes", [str(HERE / "plain_nodes_process.py")])
+        group.participant("b1")
+        group.manager("--liveness-timeout", LIVENESS, "--layers", str(layers))
+        plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+        client.wait_for_manager(15.0)
+        wait_registry(client, lambda r: any(p.node == "/b1" for p in r.participants))
+        yield group
+    finally:
+        group.kill_all()
+
+
+def call(client: LayerClient, service_type: Any, name: str, request: Any) -> Any:
+    service = client.node.create_client(service_type, name)
+    try:
+        assert service.wait_for_service(timeout_sec=10.0), name
+        future = service.call_async(request)
+        rclpy.spin_until_future_complete(client.node, future, timeout_sec=5.0)
+        assert future.done(), f"no answer from {name}"
+        return future.result()
+    finally:
+        client.node.destroy_client(service)
+
+
+def max_speed(client: LayerClient) -> float:
+    response = call(
+        client, GetParameters, "/base/get_parameters", GetParameters.Request(names=["max_speed"])
+    )
+    return float(response.values[0].double_value)
+
+
+def propeller_state(client: LayerClient) -> str:
+    return str(
+        call(client, GetState, "/propeller/get_state", GetState.Request()).current_state.label
+    )
+
+
+def test_a_layer_sets_a_parameter_and_restores_it(
+    system: ProcessGroup, client: LayerClient
+) -> None:
+    settle(client)
+    assert max_speed(client) == 1.0
+    result = client.request(["Slow"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert max_speed(client) == pytest.approx(0.3), "set before the switch was acknowledged"
+    result = client.request((), ["Slow"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert max_speed(client) == 1.0, "the previous value comes back"
+
+
+def test_a_rejected_parameter_refuses_the_state(system: ProcessGroup, client: LayerClient) -> None:
+    settle(client)
+    before = client.query().epoch
+    result = client.request(["Fast"], synchronous=True, timeout=5)
+    assert not result.success
+    assert (
+        "node /base rejected parameter max_speed = 9 (for layer Fast): above 5.0 m/s is unsafe"
+        in result.message
+    )
+    assert "nothing changed" in result.message
+    assert client.query().epoch == before and "Fast" not in client.query().active_layers
+    assert max_speed(client) == 1.0
+
+
+def test_a_layer_requires_lifecycle_states(system: ProcessGroup, client: LayerClient) -> None:
+    settle(client)
+    result = client.request(["Indoor"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert propeller_state(client) == "inactive", "configured on the way"
+    result = client.request(["Outdoor"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert propeller_state(client) == "active"
+    result = client.request(["Indoor"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert propeller_state(client) == "inactive"
+
+
+def test_a_failed_transition_refuses_the_state_and_rolls_back(
+    system: ProcessGroup, client: LayerClient
+) -> None:
+    settle(client, "Indoor", "Slow")
+    assert max_speed(client) == pytest.approx(0.3)
+    refuse = Parameter(
+        name="refuse_activation",
+        value=ParameterValue(type=ParameterType.PARAMETER_BOOL, bool_value=True),
+    )
+    call(
+        client,
+        SetParameters,
+        "/propeller/set_parameters",
+        SetParameters.Request(parameters=[refuse]),
+    )
+    try:
+        before = client.query()
+        result = client.request(["Outdoor"], ["Slow"], synchronous=True, timeout=5)
+        assert not result.success
+        assert (
+            "lifecycle node /propeller: transition activate from inactive failed "
+            "(for layer Outdoor)" in result.message
+        )
+        after = client.query()
+        assert (after.epoch, list(after.active_layers)) == (before.epoch, ["Indoor", "Slow"])
+        assert max_speed(client) == pytest.approx(0.3), "the parameter restore was rolled back"
+        assert propeller_state(client) == "inactive"
+    finally:
+        refuse.value.bool_value = False
+        call(
+            client,
+            SetParameters,
+            "/propeller/set_parameters",
+            SetParameters.Request(parameters=[refuse]),
+        )
+    time.sleep(0.1)
+
+
+def test_a_command_during_recovery_waits_for_the_ros_side(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """The manager still recovers (listening to its nodes) when the command comes: the
+    command waits, and the parameter is set before it is answered."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text(LAYERS, encoding="utf-8")
+    robot = ("--ros-args", "-r", "__ns:=/late")
+    plain = processes.start("late plain nodes", [str(HERE / "plain_nodes_process.py"), *robot])
+    processes.start(
+        "late participant", [str(HERE / "participant_process.py"), "--name", "b2", *robot]
+    )
+    plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+    processes.manager("--recovery-window", "6.0", "--layers", str(layers), *robot, name="late")
+    node = Node("late_client", namespace="/late")
+    try:
+        late = LayerClient(node, "pytest")
+        late.wait_for_manager(15.0)
+        assert late.query().recovering, "the command must come during recovery"
+        result = late.request(["Slow"], synchronous=True, timeout=5)
+        assert result.success, result.message
+        response = call(
+            late,
+            GetParameters,
+            "/late/base/get_parameters",
+            GetParameters.Request(names=["max_speed"]),
+        )
+        assert response.values[0].double_value == pytest.approx(0.3)
+    finally:
+        node.destroy_node()

@@ -1,0 +1,165 @@
+"""Context rules in a real manager process: topics from a publisher, ordinary activations
+with the rule as their reason, manual commands beside them, field errors before messages."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+from rclpy.node import Node
+from sensor_msgs.msg import BatteryState, NavSatFix
+
+from contextros.ros import LayerClient
+from tests.ros.processes import Child, ProcessGroup
+from tests.ros.system import LIVENESS, wait_registry
+from tests.ros.test_cli import contextros
+
+RULES = """\
+# The robot's rules
+rule Battery: Night while battery.percentage < 20 for 0.2 s hysteresis 5
+rule Place: Outdoor while gps.status.status >= 0 else Indoor
+"""
+
+
+class Sensors:
+    """Publishers of the topics the rules read, in the test process (namespace `ns`)."""
+
+    def __init__(self, client: LayerClient, namespace: str = "/") -> None:
+        self.node = Node("fake_sensors", namespace=namespace)
+        self.client = client
+        self.battery = self.node.create_publisher(BatteryState, "battery", 10)
+        self.gps = self.node.create_publisher(NavSatFix, "gps", 10)
+
+    def publish(self, percentage: float | None = None, fix: int | None = None) -> None:
+        if percentage is not None:
+            self.battery.publish(BatteryState(percentage=percentage))
+        if fix is not None:
+            message = NavSatFix()
+            message.status.status = fix
+            self.gps.publish(message)
+
+    def keep_publishing(
+        self, until: Callable[[], bool], timeout: float = 10.0, what: str = "", **values: float
+    ) -> None:
+        """Publish every 50 ms until `until()` (the rules need their topics discovered)."""
+        deadline = time.monotonic() + timeout
+        while not until():
+            assert time.monotonic() < deadline, f"timed out: {what}"
+            self.publish(**values)  # type: ignore[arg-type]
+            time.sleep(0.05)
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Child]:
+    rules = tmp_path_factory.mktemp("rules") / "robot.layers"
+    rules.write_text(RULES, encoding="utf-8")
+    group = ProcessGroup()
+    try:
+        participant = group.participant("r1")
+        manager = group.manager("--liveness-timeout", LIVENESS, "--rules", str(rules))
+        participant.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15)
+        client.wait_for_manager(15.0)
+        wait_registry(client, lambda r: any(p.node == "/r1" for p in r.participants))
+        yield manager
+    finally:
+        group.kill_all()
+
+
+@pytest.fixture(scope="module")
+def sensors(client: LayerClient, system: Child) -> Iterator[Sensors]:
+    sensors = Sensors(client)
+    try:
+        yield sensors
+    finally:
+        sensors.node.destroy_node()
+
+
+def active(client: LayerClient) -> list[str]:
+    return list(client.query().active_layers)
+
+
+def test_a_rule_activates_its_layer_with_itself_as_the_reason(
+    client: LayerClient, sensors: Sensors, system: Child
+) -> None:
+    sensors.keep_publishing(
+        lambda: "Indoor" in active(client), fix=-1, percentage=50.0, what="Indoor from no GPS fix"
+    )
+    sensors.keep_publishing(
+        lambda: "Night" in active(client), percentage=10.0, what="Night from a low battery"
+    )
+    registry = client.query()
+    assert registry.requester == "rule Battery"
+    assert registry.reason == "battery.percentage < 20 for 0.2 s (robot.layers:2)"
+    shown = contextros("status")
+    assert "(rule Battery: battery.percentage < 20 for 0.2 s (robot.layers:2))" in shown.stdout
+    system.wait_for(
+        lambda _: any(
+            "rule Battery switched to Night: 1 nodes applied it" in line for line in system.lines
+        ),
+        5,
+        "the manager's log of the rule's activation",
+    )
+
+
+def test_hysteresis_and_a_group_choice(client: LayerClient, sensors: Sensors) -> None:
+    sensors.keep_publishing(lambda: "Night" in active(client), percentage=10.0)
+    for _ in range(10):  # above 20 but below 20 + 5: still low
+        sensors.publish(percentage=23.0)
+        time.sleep(0.05)
+    assert "Night" in active(client)
+    sensors.keep_publishing(lambda: "Night" not in active(client), percentage=26.0)
+    sensors.keep_publishing(lambda: active(client)[-1:] == ["Outdoor"], fix=0)
+    assert "Indoor" not in active(client), "the else branch's group member was replaced"
+
+
+def test_a_manual_command_stands_until_the_rule_s_condition_changes(
+    client: LayerClient, sensors: Sensors
+) -> None:
+    sensors.keep_publishing(lambda: "Night" in active(client), percentage=10.0)
+    result = client.request((), ("Night",), synchronous=True, timeout=5, reason="operator")
+    assert result.success, result.message
+    for _ in range(10):  # the battery is still low: the rule does not fight the operator
+        sensors.publish(percentage=10.0)
+        time.sleep(0.05)
+    assert "Night" not in active(client)
+    assert client.query().reason == "operator"
+    for _ in range(8):  # the condition changes (no change: Night is off already)...
+        sensors.publish(percentage=30.0)
+        time.sleep(0.05)
+    # ... and when the battery runs low again, the rule acts again.
+    sensors.keep_publishing(lambda: "Night" in active(client), percentage=10.0)
+    assert client.query().requester == "rule Battery"
+
+
+def test_a_field_the_message_lacks_is_reported_before_any_message(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    rules = tmp_path / "bad.layers"
+    rules.write_text("rule Bad: Night while battery.percent < 20\n", encoding="utf-8")
+    manager = processes.manager(
+        "--rules", str(rules), "--ros-args", "-r", "__ns:=/bad", name="bad manager"
+    )
+    sensors = Sensors(client, namespace="/bad")
+    try:
+        manager.wait_for(
+            lambda _: any("has no field 'percent'" in line for line in manager.lines),
+            15,
+            "the field error",
+        )
+        sensors.publish(percentage=1.0)
+        output = manager.output()
+        assert f"{rules}:1:23: error: sensor_msgs/msg/BatteryState (the type of topic " in output
+        assert "rule Bad: Night while battery.percent < 20" in output
+        assert "rules on /bad/battery stay off" in output
+    finally:
+        sensors.node.destroy_node()
+
+
+def test_a_rule_with_a_syntax_error_stops_the_manager_at_once(tmp_path: Path) -> None:
+    rules = tmp_path / "broken.layers"
+    rules.write_text("rule Low: Night while battery.percentage <\n", encoding="utf-8")
+    done = contextros("manager", "--rules", str(rules))
+    assert done.returncode == 2
+    assert f"{rules}:1:43: error: expected a field (TOPIC.FIELD) or a constant" in done.stderr

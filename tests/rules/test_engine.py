@@ -1,0 +1,113 @@
+"""Rule evaluation, deterministic: messages and a clock in, firings out (no ROS)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from contextros.language.diagnostics import LayerSyntaxError
+from contextros.rules import Firing, Rule, RuleEngine, RuleSet, resolve
+
+
+def engine(*rules: tuple[str, str]) -> RuleEngine:
+    return RuleEngine(RuleSet.from_rules([Rule(name, text) for name, text in rules]))
+
+
+def battery(percentage: float, present: bool = True) -> SimpleNamespace:
+    return SimpleNamespace(percentage=percentage, present=present)
+
+
+def fix(status: int) -> SimpleNamespace:
+    return SimpleNamespace(status=SimpleNamespace(status=status))
+
+
+def feed(rules: RuleEngine, topic: str, values: list[object], period: float, start: float = 0.0):
+    """Each message `period` apart; the firings with the time they came."""
+    fired: list[tuple[float, Firing]] = []
+    now = start
+    for value in values:
+        fired += [(now, f) for f in rules.on_message(topic, value, now)]
+        now += period
+    return fired
+
+
+def test_a_hold_time_ignores_a_noisy_reading() -> None:
+    rules = engine(("Gps", "Outdoor while gps/fix.status.status >= 0 for 0.15 s else Indoor"))
+    readings = [fix(s) for s in (-1, -1, -1, -1, 0, -1, -1, 0, 0, 0, 0, 0)]
+    fired = feed(rules, "gps/fix", readings, 0.05)
+    assert [(round(t, 2), f.activate) for t, f in fired] == [
+        (0.15, ("Indoor",)),
+        (0.5, ("Outdoor",)),
+    ]
+    assert fired[1][1].requester == "rule Gps"
+    assert fired[1][1].reason == "gps/fix.status.status >= 0 for 0.15 s (<rules>:1)"
+
+
+def test_the_hold_time_also_passes_without_messages() -> None:
+    rules = engine(("Low", "LowBattery while battery.percentage < 20 for 2 s"))
+    assert rules.on_message("battery", battery(10), 0.0) == []
+    assert rules.tick(1.9) == []
+    (firing,) = rules.tick(2.0)
+    assert firing.activate == ("LowBattery",)
+    assert rules.tick(5.0) == [], "fires once per change"
+
+
+def test_hysteresis_keeps_a_while_rule_true_until_the_margin_is_passed() -> None:
+    rules = engine(("Low", "LowBattery while battery.percentage < 20 hysteresis 5"))
+    values = [battery(p) for p in (30, 19, 21, 24.9, 20, 25, 19)]
+    fired = feed(rules, "battery", values, 1.0)
+    assert [(t, f.activate, f.deactivate) for t, f in fired] == [
+        (0.0, (), ("LowBattery",)),
+        (1.0, ("LowBattery",), ()),
+        (5.0, (), ("LowBattery",)),
+        (6.0, ("LowBattery",), ()),
+    ]
+
+
+def test_hysteresis_under_not_moves_the_other_way() -> None:
+    rules = engine(("Full", "Charged while not battery.percentage < 90 hysteresis 5"))
+    fired = feed(rules, "battery", [battery(p) for p in (95, 87, 84)], 1.0)
+    assert [f.activate or f.deactivate for _, f in fired] == [("Charged",), ("Charged",)]
+    assert [t for t, _ in fired] == [0.0, 2.0], "stays on at 87, goes off below 85"
+
+
+def test_edge_rules_act_when_their_condition_starts_to_hold() -> None:
+    rules = engine(
+        ("Dock", "activate Docked when dock.data == true"),
+        ("Undock", "deactivate Docked when dock.data == false"),
+    )
+    docked, free = SimpleNamespace(data=True), SimpleNamespace(data=False)
+    fired = feed(rules, "dock", [free, docked, docked, free], 1.0)
+    assert [(f.rule, f.activate, f.deactivate) for _, f in fired] == [
+        ("Undock", (), ("Docked",)),
+        ("Dock", ("Docked",), ()),
+        ("Undock", (), ("Docked",)),
+    ]
+
+
+def test_a_condition_on_two_topics_waits_for_both() -> None:
+    rules = engine(("Go", "activate Fast when battery.percentage > 50 and dock.data == false"))
+    assert rules.on_message("battery", battery(80), 0.0) == []
+    (firing,) = rules.on_message("dock", SimpleNamespace(data=False), 0.1)
+    assert firing.activate == ("Fast",)
+
+
+def test_contradicting_firings_resolve_in_file_order() -> None:
+    first = Firing("A", ("Outdoor",), (), "a", 0)
+    second = Firing("B", ("Indoor",), (), "b", 1)
+    unrelated = Firing("C", ("Night",), (), "c", 2)
+    relations = {
+        "Indoor": (frozenset({"location"}), frozenset()),
+        "Outdoor": (frozenset({"location"}), frozenset()),
+    }
+    kept, overridden = resolve([second, unrelated, first], relations)
+    assert kept == [first, unrelated] and overridden == [second]
+    off = Firing("D", (), ("Outdoor",), "d", 3)
+    assert resolve([off, first], {})[1] == [off]
+
+
+def test_python_api_errors_point_into_the_rule_text() -> None:
+    with pytest.raises(LayerSyntaxError) as caught:
+        RuleSet.from_rules([Rule("Low", "LowBattery while battery.percentage < low")])
+    assert "<rules>:1:" in str(caught.value) and "'low' is not a field" in str(caught.value)

@@ -1,0 +1,85 @@
+"""Static checks of rule sets: fields against a message type, contradicting rules."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from contextros.language.diagnostics import LayerSyntaxError
+from contextros.rules import Rule, RuleSet
+
+KINDS = {
+    ("percentage",): "number",
+    ("present",): "bool",
+    ("location",): "string",
+    ("cell_voltage",): "array",
+    ("header",): "message",
+}
+
+
+def field_errors(text: str) -> list[str]:
+    rules = RuleSet.from_rules([Rule("R", text)], path="robot.layers")
+    found = rules.check_fields(
+        "battery", lambda path: KINDS.get(path), "sensor_msgs/msg/BatteryState"
+    )
+    return [d.render() for d in found]
+
+
+def test_a_field_the_type_lacks_is_an_error_at_its_column() -> None:
+    (error,) = field_errors("LowBattery while battery.percent < 20")
+    head, quoted, caret = error.splitlines()
+    assert head == (
+        "robot.layers:1:26: error: sensor_msgs/msg/BatteryState (the type of topic 'battery') "
+        "has no field 'percent'"
+    )
+    assert caret.index("^") - 4 == quoted.index("battery.percent") - 4
+
+
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        (
+            "LowBattery while battery.percentage == 'low'",
+            "cannot be compared with the string 'low'",
+        ),
+        ("LowBattery while battery.location < 'x'", "compared with == or != only"),
+        ("LowBattery while battery.percentage", "must be a bool field"),
+        ("LowBattery while battery.cell_voltage > 3", "name one of its fields"),
+        ("LowBattery while battery.header == 1", "name one of its fields"),
+    ],
+)
+def test_kinds_must_fit(text: str, problem: str) -> None:
+    (error,) = field_errors(text)
+    assert problem in error
+
+
+def test_fitting_fields_pass() -> None:
+    assert field_errors("LowBattery while battery.percentage < 20 and battery.present") == []
+    assert field_errors("LowBattery while other.x > 1") == [], "another topic's fields: later"
+
+
+def test_duplicate_names_are_errors(tmp_path: Path) -> None:
+    path = tmp_path / "robot.layers"
+    path.write_text("rule A: X while a.b > 1\nrule A: Y while a.b < 1\n", encoding="utf-8")
+    with pytest.raises(LayerSyntaxError, match=r"rule 'A' is already declared at robot\.layers:1"):
+        RuleSet.from_files([path])
+
+
+def test_contradictions_unless_the_conditions_exclude_each_other() -> None:
+    relations = {n: (frozenset({"location"}), frozenset()) for n in ("Indoor", "Outdoor")}
+    rules = RuleSet.from_rules(
+        [
+            Rule("Gps", "Outdoor while gps.status >= 0"),
+            Rule("NoGps", "Indoor while gps.status < 0"),
+            Rule("Dark", "Indoor while light.lux < 10"),
+        ]
+    )
+    warnings = [d.message for d in rules.check(relations)]
+    # Gps and NoGps never hold together; Dark may hold with either, and NoGps turns Indoor
+    # off (gps >= 0) while Dark turns it on.
+    assert len(warnings) == 2, warnings
+    assert warnings[0].startswith("rules Gps (<rules>:1) and Dark may hold at the same time")
+    assert "both of exclusive group 'location'" in warnings[0]
+    assert warnings[1].startswith("rules NoGps (<rules>:2) and Dark")
+    assert "one activates Indoor while the other deactivates it" in warnings[1]
