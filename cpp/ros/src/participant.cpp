@@ -436,6 +436,8 @@ Participant::~Participant() {
   impl_->thread.join();
   std::lock_guard<std::mutex> lock(impl_->mutex);
   impl_->run(impl_->protocol.leave());
+  std::this_thread::sleep_for(leave_repeat_after);
+  impl_->run(impl_->protocol.leave());
 }
 
 void Participant::host(const std::string& node_name,

@@ -34,6 +34,7 @@ from contextros.protocol.manager import (
 from contextros.protocol.participant import (
     DEFAULT_HEARTBEAT_PERIOD,
     DEFAULT_MANAGER_TIMEOUT,
+    LEAVE_REPEAT_AFTER,
     ParticipantProtocol,
 )
 from contextros.protocol.relations import (
@@ -46,6 +47,7 @@ from contextros.protocol.state import INITIAL_STATE, MAX_EPOCH, LayerState
 __all__ = [
     "DEFAULT_HEARTBEAT_PERIOD",
     "DEFAULT_MANAGER_TIMEOUT",
+    "LEAVE_REPEAT_AFTER",
     "INITIAL_STATE",
     "MAX_EPOCH",
     "ActivationCommand",

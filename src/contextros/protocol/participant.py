@@ -32,6 +32,9 @@ from contextros.protocol.validation import state_problems
 
 DEFAULT_HEARTBEAT_PERIOD = 0.25
 DEFAULT_MANAGER_TIMEOUT = 3.0  # the manager's liveness bound, the same in both directions
+# The leaving report is best effort like every report: adapters send it again this much
+# later, which also lets the first copy leave the process before its writer is destroyed.
+LEAVE_REPEAT_AFTER = 0.05
 DEFAULT_REPEATS = (0.05, 0.15)
 
 

@@ -34,6 +34,7 @@ from contextros.errors import LayerError, UnknownLayerError
 from contextros.protocol import (
     DEFAULT_HEARTBEAT_PERIOD,
     DEFAULT_MANAGER_TIMEOUT,
+    LEAVE_REPEAT_AFTER,
     ApplyState,
     LayerDeclaration,
     LayerState,
@@ -211,6 +212,8 @@ class ContextParticipant:
     def leave(self) -> None:
         """Tell the manager this node is going away (it is dropped at once, not after a timeout)."""
         with contextlib.suppress(Exception):
+            self._run(self.protocol.leave(time.monotonic()))
+            time.sleep(LEAVE_REPEAT_AFTER)
             self._run(self.protocol.leave(time.monotonic()))
 
     def close(self) -> None:

@@ -88,6 +88,9 @@ using ParticipantActions = std::vector<ParticipantAction>;
 
 inline constexpr std::chrono::milliseconds default_heartbeat_period{250};
 inline constexpr std::chrono::milliseconds default_manager_timeout{3000};
+// The leaving report is best effort like every report: the participant sends it again this
+// much later, which also lets the first copy leave the process before its writer goes.
+inline constexpr std::chrono::milliseconds leave_repeat_after{50};
 inline const std::vector<Clock::duration> default_repeats{std::chrono::milliseconds(50),
                                                           std::chrono::milliseconds(150)};
 // Epochs beyond 2**48 are never issued by an honest manager (docs/protocol.md).
