@@ -102,6 +102,21 @@ def test_a_timeout_or_a_lost_target_aborts() -> None:
     assert manager.state.epoch == 1
 
 
+def test_a_node_that_never_votes_holds_the_system_at_most_max_vote_time() -> None:
+    manager = running()
+    atomic(manager, 1, 1.1, activate=("Night",), timeout=3600.0)
+    manager.receive_status(vote("/a", 2), 1.2)
+    outcome: dict[int, ActivationResult] = {}
+    now = 1.2
+    while not outcome and now < 100.0:
+        now += 0.5
+        actions = manager.receive_status(report("/a", 1, vote_epoch=2, vote_yes=True), now)
+        actions += manager.receive_status(report("/b", 1), now)  # alive, never voting
+        outcome = replies([*actions, *manager.tick(now)])
+    assert not outcome[1].success and "/b did not vote within 60 s" in outcome[1].message
+    assert 61.0 <= now <= 62.0 and manager.state.epoch == 1
+
+
 def test_other_commands_wait_for_the_outcome_of_the_vote() -> None:
     manager = running()
     assert proposals(atomic(manager, 1, 1.1, activate=("Night",))) == [2]

@@ -17,7 +17,7 @@ import heapq
 import random
 from dataclasses import dataclass, field
 
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from contextros.protocol import (
@@ -101,6 +101,40 @@ scripts = st.lists(
 
 @settings(max_examples=200, deadline=None)
 @given(script=scripts, seed=st.integers(0, 2**32), loss=st.sampled_from([0.0, 0.3, 0.5]))
+# Found by hypothesis: a memoryless manager that started at 1 then heard a cut-off node's
+# epoch 1001 reissued 1002 (it jumped the gap only when it had published nothing).
+@example(
+    script=[
+        ("crash_node", 0),
+        ("crash_node", 0),
+        ("wait", 1.8220758676999451),
+        ("crash_manager", False),
+        ("wait", 1.625),
+        ("wait", 1.96875),
+        ("command", "Indoor", True, ""),
+        ("crash_manager", False),
+        ("crash_node", 0),
+        ("wait", 0.75),
+        ("crash_manager", False),
+        ("crash_node", 1),
+        ("crash_node", 2),
+        ("cut", 0, 1.0),
+    ],
+    seed=84004,
+    loss=0.5,
+)
+@example(
+    script=[
+        ("crash_node", 2),
+        ("wait", 0.8125),
+        ("crash_node", 0),
+        ("cut", 0, 1.0),
+        ("command", "Indoor", True, ""),
+        ("crash_manager", False),
+    ],
+    seed=634,
+    loss=0.3,
+)
 def test_no_regression_no_split_state_no_false_success(
     script: list[tuple],
     seed: int,
@@ -120,6 +154,11 @@ def test_no_regression_no_split_state_no_false_success(
     ever_applied = dict.fromkeys(NODES, 0)
     active_of_epoch: dict[int, tuple[str, ...]] = {}  # from states nodes applied
     published_of_epoch: dict[int, tuple[str, ...]] = {}  # by managers with the state file
+    # The documented exception (docs/protocol.md, Manager restart): a memoryless manager
+    # that heard no participant holding a state may reissue an unheard node's epoch until
+    # it hears one. Its states from then are exempt from the one-configuration check.
+    unaware: set[str] = set()  # such managers, by id
+    exempt: set[tuple[int, str]] = set()  # (epoch, manager id) of the states they published
     cut_until: dict[str, float] = {}
     asked: dict[int, ActivationCommand] = {}
     aborted: set[int] = set()
@@ -131,7 +170,9 @@ def test_no_regression_no_split_state_no_false_success(
         assert state.epoch not in aborted, f"{node} applied aborted epoch {state.epoch}"
         history.append(state.epoch)
         ever_applied[node] = max(ever_applied[node], state.epoch)
-        known = active_of_epoch.setdefault(state.epoch, state.active)
+        known, by = active_of_epoch.setdefault(state.epoch, (state.active, state.manager_id))
+        if by != state.manager_id and {(state.epoch, state.manager_id), (state.epoch, by)} & exempt:
+            return
         assert known == state.active, f"two active sets for epoch {state.epoch}"
 
     def run_manager(actions: list[object]) -> None:
@@ -143,6 +184,14 @@ def test_no_regression_no_split_state_no_false_success(
             elif isinstance(action, PublishState | PublishHeartbeat):
                 if isinstance(action, PublishState):
                     assert action.state.epoch not in aborted, "an aborted epoch was published"
+                if isinstance(action, PublishState) and not use_file:
+                    reason, mid = action.state.reason, action.state.manager_id
+                    if reason == "started with no previous state":
+                        unaware.add(mid)
+                    elif reason.startswith(("recovered from", "re-asserted over")):
+                        unaware.discard(mid)
+                    if mid in unaware:
+                        exempt.add((action.state.epoch, mid))
                 if isinstance(action, PublishState) and use_file:
                     state_file = action.state
                     seen = published_of_epoch.setdefault(action.state.epoch, action.state.active)
@@ -168,7 +217,12 @@ def test_no_regression_no_split_state_no_false_success(
             )
         assert set(command.expect_nodes) <= set(result.acknowledged)
         if result.epoch in active_of_epoch:
-            assert active_of_epoch[result.epoch] == result.active
+            known, by = active_of_epoch[result.epoch]
+            if by == manager.settings.manager_id or not {
+                (result.epoch, by),
+                (result.epoch, manager.settings.manager_id),
+            } & exempt:
+                assert known == result.active
 
     def run_participant(node: str, actions: list[object]) -> None:
         for action in actions:

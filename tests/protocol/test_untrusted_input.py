@@ -99,7 +99,7 @@ def test_a_bad_status_is_ignored_and_named(field: str, change: dict[str, Any]) -
     assert manager.receive_status(bad, 1.3) == [], "logged once per sender and period"
 
 
-@pytest.mark.parametrize("epoch", [2**64 - 1, 10**15, MAX_EPOCH + 1])
+@pytest.mark.parametrize("epoch", [2**64 - 1, 10**15, MAX_EPOCH + 1, MAX_EPOCH, MAX_EPOCH // 2 + 1])
 def test_an_implausible_epoch_never_becomes_the_systems_epoch(epoch: int) -> None:
     for during_recovery in (True, False):
         manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0))

@@ -45,7 +45,7 @@ from contextros.protocol.relations import (
     order_note,
     relation_violations,
 )
-from contextros.protocol.state import INITIAL_STATE, LayerState
+from contextros.protocol.state import INITIAL_STATE, MAX_EPOCH, LayerState
 from contextros.protocol.validation import (
     command_problems,
     listing,
@@ -53,6 +53,8 @@ from contextros.protocol.validation import (
 )
 
 RECOVERY_REQUESTER = "manager"
+# The highest epoch a manager adopts from a report: half the range, the rest for its own states.
+ADOPTABLE_EPOCH = MAX_EPOCH // 2
 
 # A participant is one process under one incarnation; a node name may (wrongly) be used
 # by two live processes at once, so the registry is keyed by both.
@@ -66,6 +68,9 @@ class ManagerSettings:
     # delay jitter still saw a spurious drop in about 40 activations (benchmarks/lossy_link).
     liveness_timeout: float = 3.0
     default_timeout: float = 5.0
+    # An atomic vote holds every later command, so it lasts at most this long whatever the
+    # command's timeout (a node that never votes must not stall the system for an hour).
+    max_vote_time: float = 60.0
     # How long a (re)started manager listens to participants before deciding its first state;
     # prolonged while participants keep appearing (discovery is slower on a loaded machine),
     # by `recovery_quiet` after the last newcomer, up to three windows in all.
@@ -345,17 +350,22 @@ class ManagerProtocol:
 
     def _report_problems(self, report: ParticipantReport) -> list[str]:
         problems = report_problems(report)
-        if problems or self._state.epoch == 0:
-            # With no epoch known (no state file, nothing heard yet) only the absolute bound
-            # applies: the participants are the manager's only memory.
+        if problems:
             return problems
-        ceiling = self._state.epoch + self.settings.max_epoch_jump
+        # With no epoch known (no state file, nothing heard yet) only an absolute bound
+        # applies, the participants being the manager's only memory; it leaves room above
+        # for the memoryless gap and every later state (MAX_EPOCH is never reached).
+        ceiling = ADOPTABLE_EPOCH
+        if self._state.epoch:
+            ceiling = min(ceiling, self._state.epoch + self.settings.max_epoch_jump)
         for name, epoch in (
             ("applied_epoch", report.applied_epoch),
             ("pending_epoch", report.pending_epoch),
             ("failed_epoch", report.failed_epoch),
         ):
-            if epoch > ceiling:
+            if epoch > ADOPTABLE_EPOCH:
+                problems.append(f"{name} {epoch} is above {ADOPTABLE_EPOCH} (not adopted)")
+            elif epoch > ceiling:
                 problems.append(
                     f"{name} {epoch} is more than {self.settings.max_epoch_jump} above the "
                     f"manager's epoch {self._state.epoch} (not adopted; if it is genuine, "
@@ -462,7 +472,8 @@ class ManagerProtocol:
         else:
             active, reason = report.active, f"recovered from {report.node}"
         above = report.applied_epoch
-        if self._memoryless and self._state.epoch == 0:
+        if self._memoryless:
+            # Whoever published that epoch may have published a few more nobody reported.
             above = self._above_unknown(above)
         return [*actions, self._publish(active, RECOVERY_REQUESTER, reason, now, above)]
 
@@ -523,6 +534,7 @@ class ManagerProtocol:
         self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
     ) -> list[ManagerAction]:
         timeout = command.timeout if command.timeout > 0 else self.settings.default_timeout
+        timeout = min(timeout, self.settings.max_vote_time)
         speaks_for = {
             name
             for key, record in self._participants.items()
