@@ -218,10 +218,14 @@ def test_no_regression_no_split_state_no_false_success(
         assert set(command.expect_nodes) <= set(result.acknowledged)
         if result.epoch in active_of_epoch:
             known, by = active_of_epoch[result.epoch]
-            if by == manager.settings.manager_id or not {
-                (result.epoch, by),
-                (result.epoch, manager.settings.manager_id),
-            } & exempt:
+            if (
+                by == manager.settings.manager_id
+                or not {
+                    (result.epoch, by),
+                    (result.epoch, manager.settings.manager_id),
+                }
+                & exempt
+            ):
                 assert known == result.active
 
     def run_participant(node: str, actions: list[object]) -> None:

@@ -47,8 +47,8 @@ from contextros.protocol.state import INITIAL_STATE, MAX_EPOCH, LayerState
 __all__ = [
     "DEFAULT_HEARTBEAT_PERIOD",
     "DEFAULT_MANAGER_TIMEOUT",
-    "LEAVE_REPEAT_AFTER",
     "INITIAL_STATE",
+    "LEAVE_REPEAT_AFTER",
     "MAX_EPOCH",
     "ActivationCommand",
     "ActivationFailed",
