@@ -163,3 +163,39 @@ def test_a_rule_with_a_syntax_error_stops_the_manager_at_once(tmp_path: Path) ->
     done = contextros("manager", "--rules", str(rules))
     assert done.returncode == 2
     assert f"{rules}:1:43: error: expected a field (TOPIC.FIELD) or a constant" in done.stderr
+
+
+def test_a_byte_field_is_a_number_and_a_raising_rule_does_not_stop_the_manager(
+    client: LayerClient,
+) -> None:
+    from std_msgs.msg import Byte, UInt8
+
+    from contextros.ros.rules import RuleRunner, field_kind
+    from contextros.rules import Firing, Rule, RuleSet
+
+    assert field_kind(Byte, ("data",)) == "number"
+    assert field_kind(UInt8, ("data",)) == "number"
+    rules = RuleSet.from_rules(
+        [Rule("Level", "High while level.data >= 2"), Rule("Odd", "Odd while odd.data > 1")]
+    )
+    fired: list[Firing] = []
+    node = Node("rule_runner_test")
+    try:
+        runner = RuleRunner(node, rules, fired.append, dict)
+        # What rclpy delivers for std_msgs/Byte: bytes of length 1 (this raised TypeError
+        # out of the subscription callback, and spin_nodes ended the manager).
+        runner._on_message("level", Byte(data=b"\x05"))
+        assert [f.activate for f in fired] == [("High",)]
+        # A message the static checks could not foresee: the rule goes off, nothing escapes.
+        runner._on_message("odd", UInt8Like("x"))
+        runner._on_message("odd", UInt8Like(5))
+        assert [f.rule for f in fired] == ["Level"], "the failed rule stays off"
+        runner._on_message("level", Byte(data=b"\x00"))
+        assert [f.deactivate for f in fired][-1] == ("High",), "the other rules still run"
+    finally:
+        node.destroy_node()
+
+
+class UInt8Like:
+    def __init__(self, data: object) -> None:
+        self.data = data

@@ -111,3 +111,31 @@ def test_python_api_errors_point_into_the_rule_text() -> None:
     with pytest.raises(LayerSyntaxError) as caught:
         RuleSet.from_rules([Rule("Low", "LowBattery while battery.percentage < low")])
     assert "<rules>:1:" in str(caught.value) and "'low' is not a field" in str(caught.value)
+
+
+def test_a_byte_field_compares_as_its_number() -> None:
+    # rclpy hands a ROS byte (IDL octet, std_msgs/Byte.data) over as bytes of length 1.
+    rules = engine(("Level", "High while level.data >= 2"))
+    (low,) = rules.on_message("level", SimpleNamespace(data=b"\x01"), 0.0)
+    assert low.deactivate == ("High",)
+    (high,) = rules.on_message("level", SimpleNamespace(data=b"\x05"), 1.0)
+    assert high.activate == ("High",)
+    assert rules.failures == []
+
+
+def test_a_rule_whose_evaluation_raises_is_turned_off_and_the_others_run() -> None:
+    rules = engine(
+        ("Broken", "Night while battery.percentage < 20"),
+        ("Fine", "Present while battery.present"),
+    )
+    # A message unlike its type's promise (a string where a number was checked).
+    weird = SimpleNamespace(percentage="low", present=True)
+    (firing,) = rules.on_message("battery", weird, 0.0)
+    assert firing.rule == "Fine"
+    (failure,) = rules.failures
+    assert failure.rule.name == "Broken"
+    assert str(failure).startswith("rule Broken (<rules>:1) is off: evaluating it failed: ")
+    assert "TypeError" in str(failure)
+    rules.failures.clear()
+    assert rules.on_message("battery", battery(10), 1.0) == [], "the broken rule stays off"
+    assert rules.failures == [], "reported once"

@@ -59,6 +59,45 @@ def test_fitting_fields_pass() -> None:
     assert field_errors("LowBattery while other.x > 1") == [], "another topic's fields: later"
 
 
+@pytest.mark.parametrize(
+    ("text", "problem"),
+    [
+        (
+            "LowBattery while battery.percentage == battery.location",
+            "'battery.percentage' (a number field of sensor_msgs/msg/BatteryState) cannot be "
+            "compared with 'battery.location' (a string field of sensor_msgs/msg/BatteryState)",
+        ),
+        (
+            "LowBattery while battery.location < battery.location",
+            "are string fields: a string is compared with == or != only",
+        ),
+    ],
+)
+def test_a_field_compared_with_a_field_of_the_same_topic_must_fit(text: str, problem: str) -> None:
+    (error,) = field_errors(text)
+    assert error.startswith("robot.layers:1:"), error
+    assert problem in error
+
+
+def test_fields_of_two_topics_are_checked_once_both_types_are_known() -> None:
+    rules = RuleSet.from_rules(
+        [Rule("R", "LowBattery while battery.percentage > dock.name")], path="robot.layers"
+    )
+    battery = ("sensor_msgs/msg/BatteryState", lambda path: KINDS.get(path))
+    dock = ("example/msg/Dock", lambda path: {("name",): "string"}.get(path))
+    # The battery's type comes first: the dock's is not known, nothing to say yet.
+    assert rules.check_fields("battery", battery[1], battery[0]) == []
+    # Then the dock's, with the battery's known: the mismatch, at the dock's field.
+    (error,) = rules.check_fields("dock", dock[1], dock[0], {"battery": (battery[1], battery[0])})
+    head = error.render().splitlines()[0]
+    assert head.startswith("robot.layers:1:"), head
+    assert error.source_line[error.col - 1 :].startswith("dock.name")
+    assert "cannot be compared with 'dock.name' (a string field of example/msg/Dock)" in head
+    fitting = RuleSet.from_rules([Rule("R", "LowBattery while battery.percentage > dock.x")])
+    known = {"battery": (battery[1], battery[0])}
+    assert fitting.check_fields("dock", lambda p: "number", "example/msg/Dock", known) == []
+
+
 def test_duplicate_names_are_errors(tmp_path: Path) -> None:
     path = tmp_path / "robot.layers"
     path.write_text("rule A: X while a.b > 1\nrule A: Y while a.b < 1\n", encoding="utf-8")

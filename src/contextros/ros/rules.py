@@ -27,10 +27,10 @@ RULE_QOS = QoSProfile(
 )
 _TYPE_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z_][A-Za-z0-9_]*)$")
 _NESTED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z_][A-Za-z0-9_]*)$")
+# A byte (IDL octet) arrives from rclpy as `bytes` of length 1: the engine compares its number.
+# A char (IDL char/wchar) arrives as a one-character `str`.
 _NUMBERS = {
-    "boolean",
     "octet",
-    "char",
     "byte",
     "float",
     "double",
@@ -44,6 +44,7 @@ _NUMBERS = {
     "int64",
     "uint64",
 }
+_CHARACTERS = {"char", "wchar"}
 
 
 def message_class(type_name: str) -> Any:
@@ -78,7 +79,7 @@ def field_kind(cls: Any, path: tuple[str, ...]) -> FieldKind:
             kind = "bool"
         elif ros_type in _NUMBERS:
             kind = "number"
-        elif ros_type.startswith(("string", "wstring")):
+        elif ros_type in _CHARACTERS or ros_type.startswith(("string", "wstring")):
             kind = "string"
         elif nested := _NESTED.match(ros_type):
             kind = "message"
@@ -109,6 +110,8 @@ class RuleRunner:
         self._relations = relations
         self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
         self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
+        # Topics bound so far: (field lookup, type name), to check fields compared across topics.
+        self._known: dict[str, tuple[Callable[[tuple[str, ...]], FieldKind], str]] = {}
         self._subscriptions: list[Any] = []
         self.errors: list[Diagnostic] = []
         # Firings the manager refused (a relation, say): tried again after each new state
@@ -146,7 +149,11 @@ class RuleRunner:
         except ValueError as error:
             self._refuse(topic, type_name, f"topic {resolved}: {error}")
             return
-        problems = self.rules.check_fields(topic, lambda path: field_kind(cls, path), type_name)
+
+        def lookup(path: tuple[str, ...]) -> FieldKind:
+            return field_kind(cls, path)
+
+        problems = self.rules.check_fields(topic, lookup, type_name, self._known)
         if problems:
             self.errors += problems
             self._failed[topic] = type_name
@@ -155,6 +162,7 @@ class RuleRunner:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
             return
         del self._unbound[topic]
+        self._known[topic] = (lookup, type_name)
         self._subscriptions.append(
             self.node.create_subscription(
                 cls, resolved, lambda msg, topic=topic: self._on_message(topic, msg), RULE_QOS
@@ -165,9 +173,17 @@ class RuleRunner:
     # -- evaluation ---------------------------------------------------------------------
 
     def _on_message(self, topic: str, message: Any) -> None:
+        # Anything the network sends must not stop the manager: a rule whose evaluation
+        # raises is logged and turned off by the engine; the other rules keep running.
         if topic in self._failed:
             return
-        self._fire(self.engine.on_message(topic, message, time.monotonic()))
+        try:
+            firings = self.engine.on_message(topic, message, time.monotonic())
+        finally:
+            for failure in self.engine.failures:
+                self.node.get_logger().error(f"{failure} (a message on {topic})")
+            self.engine.failures.clear()
+        self._fire(firings)
 
     def tick(self) -> None:
         self._fire(self.engine.tick(time.monotonic()))

@@ -7,7 +7,15 @@ sets and evaluates them (`RuleEngine`); `contextros.ros.rules` binds them to top
 the Layer manager. See docs/rules.md.
 """
 
-from contextros.rules.engine import Firing, RuleEngine, compile_condition, resolve
+from contextros.rules.engine import Firing, RuleEngine, RuleFailed, compile_condition, resolve
 from contextros.rules.ruleset import Rule, RuleSet
 
-__all__ = ["Firing", "Rule", "RuleEngine", "RuleSet", "compile_condition", "resolve"]
+__all__ = [
+    "Firing",
+    "Rule",
+    "RuleEngine",
+    "RuleFailed",
+    "RuleSet",
+    "compile_condition",
+    "resolve",
+]

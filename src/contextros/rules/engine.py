@@ -70,7 +70,10 @@ def _operand(operand: FieldRef | Literal) -> Callable[[Latest], Any]:
         message = latest.get(topic)
         if message is None:
             raise _NoData(topic)
-        return getter(message)
+        value = getter(message)
+        if type(value) is bytes and len(value) == 1:
+            return value[0]  # a ROS byte (octet) arrives from rclpy as bytes: its number
+        return value
 
     return read
 
@@ -115,6 +118,16 @@ def _comparison(condition: Comparison, margin: float, sign: float) -> Evaluator:
     return lambda latest: compare(left(latest), right(latest))
 
 
+class RuleFailed(Exception):
+    """Evaluating a rule raised (a message unlike what its type promised): the rule is off."""
+
+    def __init__(self, rule: RuleDecl, where: str, why: str) -> None:
+        super().__init__(f"rule {rule.name} ({where}) is off: evaluating it failed: {why}")
+        self.rule = rule
+        self.where = where
+        self.why = why
+
+
 class _RuleState:
     """One rule's settled value and the candidate value waiting out the hold time."""
 
@@ -132,12 +145,19 @@ class _RuleState:
         self.settled: bool | None = None
         self.candidate: bool | None = None
         self.since = 0.0
+        self.failed: str | None = None  # why the rule is off (its evaluation raised)
 
     def evaluate(self, latest: Latest, now: float) -> Firing | None:
+        if self.failed is not None:
+            return None
         try:
             value = (self.relaxed if self.settled else self.strict)(latest)
         except _NoData:
             return None
+        except Exception as error:  # a message the static checks could not foresee
+            self.failed = f"{type(error).__name__}: {error}"
+            self.candidate = None
+            raise RuleFailed(self.rule, self.where, self.failed) from error
         if value == self.settled:
             self.candidate = None
             return None
@@ -178,6 +198,8 @@ class RuleEngine:
             _RuleState(rule, rules.where(rule), index) for index, rule in enumerate(rules.rules)
         ]
         self._latest: dict[str, Any] = {}
+        # Rules whose evaluation raised, each reported once: they stay off, the others run.
+        self.failures: list[RuleFailed] = []
         self._by_topic: dict[str, list[_RuleState]] = {}
         for state in self._states:
             for topic in dict.fromkeys(ref.topic for ref in state.rule.fields):
@@ -187,11 +209,16 @@ class RuleEngine:
         return tuple(self._by_topic)
 
     def on_message(self, topic: str, message: Any, now: float) -> list[Firing]:
-        """The latest message on `topic`: evaluate the rules that read it."""
+        """The latest message on `topic`: evaluate the rules that read it. A rule whose
+        evaluation raises is turned off and added to `failures`; the others still run."""
         self._latest[topic] = message
         firings = []
         for state in self._by_topic.get(topic, ()):
-            firing = state.evaluate(self._latest, now)
+            try:
+                firing = state.evaluate(self._latest, now)
+            except RuleFailed as failure:
+                self.failures.append(failure)
+                continue
             if firing is not None:
                 firings.append(firing)
         return firings

@@ -146,13 +146,26 @@ class RuleSet:
                     found += sink.items
         return found
 
-    def check_fields(self, topic: str, lookup: FieldLookup, type_name: str) -> list[Diagnostic]:
+    def check_fields(
+        self,
+        topic: str,
+        lookup: FieldLookup,
+        type_name: str,
+        known: Mapping[str, tuple[FieldLookup, str]] | None = None,
+    ) -> list[Diagnostic]:
         """Errors for fields of `topic` its message type (`type_name`) does not have, or that
-        a condition compares with a constant of another kind."""
+        a condition compares with a constant of another kind. A field compared with another
+        field is checked once both types are known: fields of `topic` itself, or of the
+        topics in `known` (topic -> (lookup, type name), those already checked)."""
+        types = {**(known or {}), topic: (lookup, type_name)}
         found: list[Diagnostic] = []
         for rule in self.rules:
             sink = self.sink_for(rule)
             for comparison in _comparisons(rule.condition):
+                pair = _field_pair_problem(comparison, topic, types)
+                if pair:
+                    ref, problem = pair
+                    sink.error(problem, ref.at.line, ref.at.col)
                 operands = [comparison.left, comparison.right]
                 refs = [o for o in operands if isinstance(o, FieldRef) and o.topic == topic]
                 for ref in refs:
@@ -184,6 +197,42 @@ def _comparisons(condition: Condition) -> list[Comparison]:
     return [c for operand in condition.operands for c in _comparisons(operand)]
 
 
+def _field_pair_problem(
+    comparison: Comparison, topic: str, types: Mapping[str, tuple[FieldLookup, str]]
+) -> tuple[FieldRef, str] | None:
+    """A field compared with another field of a kind it cannot be compared with, checked when
+    the later of the two topics (`topic`) is known: (where to report it, the problem)."""
+    left, right = comparison.left, comparison.right
+    if not (isinstance(left, FieldRef) and isinstance(right, FieldRef)):
+        return None
+    if topic not in (left.topic, right.topic):
+        return None
+    if left.topic not in types or right.topic not in types:
+        return None  # the other topic's type is not known yet: checked when it is
+    kinds = []
+    for ref in (left, right):
+        ref_lookup, ref_type = types[ref.topic]
+        kind = ref_lookup(ref.path)
+        if kind not in ("number", "string", "bool"):
+            return None  # a missing field, a message or an array: reported at the field
+        kinds.append((kind, ref_type))
+    (left_kind, left_type), (right_kind, right_type) = kinds
+    at = left if left.topic == topic else right
+    if {left_kind, right_kind} == {"number", "bool"}:
+        return None  # Python compares a bool as 0/1, like a bool constant; allowed
+    if left_kind != right_kind:
+        return at, (
+            f"'{left.text}' (a {left_kind} field of {left_type}) cannot be compared with "
+            f"'{right.text}' (a {right_kind} field of {right_type})"
+        )
+    if left_kind in ("string", "bool") and comparison.op not in ("==", "!="):
+        return at, (
+            f"'{left.text}' and '{right.text}' are {left_kind} fields: a {left_kind} is "
+            "compared with == or != only"
+        )
+    return None
+
+
 def _kind_problem(kind: str, comparison: Comparison, ref: FieldRef) -> str:
     if kind in ("message", "array"):
         return "a condition compares plain values (name one of its fields)"
@@ -191,7 +240,7 @@ def _kind_problem(kind: str, comparison: Comparison, ref: FieldRef) -> str:
     if other is None:
         return "" if kind == "bool" else "a condition on its own must be a bool field"
     if isinstance(other, FieldRef):
-        return ""  # checked when both types are known: compared as values at run time
+        return ""  # checked when both types are known (_field_pair_problem)
     value = other.value
     expected = (
         "bool" if isinstance(value, bool) else "number" if isinstance(value, float) else "string"
