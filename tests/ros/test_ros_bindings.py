@@ -16,6 +16,7 @@ from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
 
+from contextros.protocol import LayerState
 from contextros.ros import LayerClient
 from tests.ros.processes import HERE, ProcessGroup
 from tests.ros.system import LIVENESS, settle, wait_registry
@@ -176,5 +177,45 @@ def test_a_command_during_recovery_waits_for_the_ros_side(
             GetParameters.Request(names=["max_speed"]),
         )
         assert response.values[0].double_value == pytest.approx(0.3)
+    finally:
+        node.destroy_node()
+
+
+def test_a_failing_reconcile_does_not_block_commands(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """A restarted manager's state needs a lifecycle node that is down: bringing ROS to it
+    fails (2 s a try) and is tried again later, while commands still run, one of them
+    deactivating the layer that needs the node."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text("lifecycle Flight: propeller_driver active\n", encoding="utf-8")
+    state_file = tmp_path / "state.json"
+    state_file.write_text(LayerState(epoch=5, active=("Flight",)).to_json(), encoding="utf-8")
+    robot = ("--ros-args", "-r", "__ns:=/stuck")
+    processes.participant("b3", *robot)
+    processes.manager(
+        "--liveness-timeout",
+        LIVENESS,
+        "--state-file",
+        str(state_file),
+        "--layers",
+        str(layers),
+        *robot,
+        name="stuck",
+    )
+    node = Node("stuck_client", namespace="/stuck")
+    try:
+        stuck = LayerClient(node, "pytest")
+        stuck.wait_for_manager(15.0)
+        registry = wait_registry(
+            stuck,
+            lambda r: not r.recovering and any(p.node == "/stuck/b3" for p in r.participants),
+        )
+        assert list(registry.active_layers) == ["Flight"]
+        # The reconcile started in the tick that ended the recovery: the command comes while
+        # it fails.
+        night = stuck.request(["Night"], ["Flight"], synchronous=True, timeout=5)
+        assert night.success, night.message
+        assert list(night.active) == ["Night"]
     finally:
         node.destroy_node()

@@ -67,6 +67,10 @@ from contextros.ros.topics import (
     STATUS_TOPIC,
 )
 
+# After a reconcile failed: its first retry, doubling up to the maximum (seconds).
+RECONCILE_RETRY = 1.0
+RECONCILE_RETRY_MAX = 30.0
+
 
 class StateFile:
     """The manager's memory across restarts: the last published state, written atomically
@@ -190,6 +194,12 @@ class LayerManagerNode(Node):
         self._driven: list[tuple[ActivationCommand | None, str]] = []
         self._driven_lock = threading.Lock()
         self._driven_guard = self.create_guard_condition(self._on_driven)
+        # A failed reconcile (a bound node is down) is tried again later, with a growing
+        # delay, and never ahead of the commands waiting: one of them may heal it.
+        self._reconcile_failures = 0
+        self._reconcile_failed_for: tuple[str, ...] | None = None
+        self._reconcile_target: tuple[str, ...] = ()
+        self._reconcile_after = 0.0
         if bindings:
             from contextros.ros.bindings import BindingDriver
 
@@ -217,9 +227,9 @@ class LayerManagerNode(Node):
             if self._retried_at != self.protocol.state.epoch:
                 self._retried_at = self.protocol.state.epoch
                 self.rules.retry()
-        self._reconcile()
         if self._commands:
             self._next_command()
+        self._reconcile()
         self._flush_logs()
 
     # -- commands, with the ROS side of layers first ----------------------------------------
@@ -276,8 +286,7 @@ class LayerManagerNode(Node):
         for command, error in driven:
             self._driving = False
             if command is None:
-                if error:
-                    self.get_logger().error(f"layers' ROS side not reached: {error}")
+                self._reconciled(error)
             elif error:
                 result = ActivationResult(
                     False,
@@ -288,19 +297,45 @@ class LayerManagerNode(Node):
                 self._reply(command.request_id, result)
             else:
                 self._run(self.protocol.receive_command(command, time.monotonic()))
-        self._reconcile()
+        # Waiting commands first: a failed reconcile must not starve them (each of its
+        # tries may take seconds), and one whose plan reaches its target heals it anyway.
         self._next_command()
+        self._reconcile()
 
     def _reconcile(self) -> None:
         """States not made by a command (recovery), or a command whose outcome differed
-        from its preview: bring the ROS side to the published state."""
+        from its preview: bring the ROS side to the published state. After a failure, the
+        same target is tried again only after a delay (`RECONCILE_RETRY`, doubling)."""
         if self.bindings is None or self._driving or self.protocol.recovering:
             return
         active = self.protocol.state.active
-        if self.bindings.applied != active and self.bindings.plan(self.bindings.applied, active):
-            self._drive(None, self.bindings.applied, active)
-        elif self.bindings.applied != active:
+        if self.bindings.applied == active:
+            self._reconcile_failures, self._reconcile_failed_for = 0, None
+            return
+        if not self.bindings.plan(self.bindings.applied, active):
             self.bindings.applied = active
+            return
+        if active == self._reconcile_failed_for and time.monotonic() < self._reconcile_after:
+            return
+        self._reconcile_target = active
+        self._drive(None, self.bindings.applied, active)
+
+    def _reconciled(self, error: str) -> None:
+        """A reconcile's outcome: on failure, when to try again."""
+        if not error:
+            self._reconcile_failures, self._reconcile_failed_for = 0, None
+            return
+        target = self._reconcile_target
+        if target != self._reconcile_failed_for:
+            self._reconcile_failures = 0
+        self._reconcile_failures += 1
+        self._reconcile_failed_for = target
+        delay = min(RECONCILE_RETRY * 2 ** (self._reconcile_failures - 1), RECONCILE_RETRY_MAX)
+        self._reconcile_after = time.monotonic() + delay
+        self.get_logger().error(
+            f"layers' ROS side not reached: {error} (try {self._reconcile_failures}; "
+            f"again in {delay:g} s, or with the next command)"
+        )
 
     def _reply(self, request_id: int, result: ActivationResult) -> None:
         if request_id in self._rule_requests:
