@@ -55,3 +55,14 @@ def test_a_node_leaving_is_not_waited_for() -> None:
     records = watch.status("/b", 4, leaving=True, wall=101.0, now=2.0)
     assert records[0] == {"event": "node-left", "node": "/b"}
     assert records[1]["event"] == "applied" and records[1]["nodes"] == 1
+
+
+def test_a_node_counts_until_the_managers_liveness_bound() -> None:
+    """The watch drops a silent node when the manager does (3 s), not earlier: a node
+    silent for 2.5 s (ten lost heartbeats on a lossy link) must still apply the switch."""
+    watch = watch_with_two_nodes()  # both heard at now=1.0
+    records = watch.state(5, ["Night"], "r", "", published=101.0, wall=101.0, now=3.5)
+    assert records[-1]["event"] == "state"
+    watch.status("/a", 5, leaving=False, wall=101.01, now=3.5)
+    records = watch.status("/b", 5, leaving=False, wall=101.02, now=3.5)
+    assert records == [{"event": "applied", "epoch": 5, "nodes": 2, "latency_ms": 20.0}]

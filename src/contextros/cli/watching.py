@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from contextros.protocol import DEFAULT_MANAGER_TIMEOUT
+
 Record = dict[str, Any]
 
 
@@ -34,7 +36,8 @@ class SwitchWatch:
     """
 
     started: float  # wall clock when the watch subscribed
-    liveness: float = 2.0  # a node silent this long is no longer counted
+    # A node silent this long is no longer counted: the manager's liveness bound.
+    liveness: float = DEFAULT_MANAGER_TIMEOUT
     switches: int = 0
     last_switch: float = 0.0  # monotonic
     _seen_state: bool = False
