@@ -206,3 +206,61 @@ def test_a_poisoned_state_file_is_refused_with_a_message(epoch: int) -> None:
         LayerState.from_json(text, "state.json")
     with pytest.raises(StateFileError, match="layer names"):
         LayerState.from_json('{"epoch": 3, "active": ["Night\\u0000evil"]}', "state.json")
+
+
+def test_what_is_kept_about_node_names_stays_bounded() -> None:
+    # Each status under a new name, hosting 256 names of 200 characters, then silence:
+    # the manager kept every name's hosted nodes and retired incarnations forever.
+    manager = running_manager()
+    hosted = tuple(f"/h{i:03d}" + "x" * 195 for i in range(256))
+    now = 1.0
+    for i in range(200):
+        for incarnation in ("1", "2"):  # a restart leaves a retired incarnation behind
+            flood = ParticipantReport(f"/flood{i}", incarnation, (NIGHT,), hosted=hosted)
+            manager.receive_status(flood, now)
+        now += 0.01
+        manager.receive_status(GOOD, now)
+        manager.tick(now)
+    manager.tick(now + 10.0)  # all silent: dropped
+    kept = manager.settings.keep_dropped
+    assert len(manager.dropped) == kept
+    remembered = set(manager._hosted) | set(manager._retired)
+    assert remembered <= {*manager.dropped, *manager.live_nodes}
+    assert len(remembered) <= kept + len(manager.live_nodes)
+
+
+def test_a_dropped_node_still_named_keeps_its_hosted_nodes() -> None:
+    manager = running_manager()
+    manager.receive_status(dataclasses.replace(GOOD, node="/b", hosted=("/b_child",)), 1.0)
+    actions = manager.receive_command(ActivationCommand(1, ("Night",), synchronous=True), 1.0)
+    assert not [a for a in actions if isinstance(a, Reply)], "waits for /a and /b"
+    manager.receive_status(GOOD, 1.5)
+    actions = manager.tick(1.0 + manager.settings.liveness_timeout + 0.5)
+    manager.receive_status(GOOD, 4.6)
+    actions += manager.tick(6.5)
+    (reply,) = [a for a in actions if isinstance(a, Reply)]
+    assert "/b_child (hosted by /b" in reply.result.message
+
+
+def test_waiting_commands_are_capped_with_a_message_naming_the_cap() -> None:
+    manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0, max_waiting_commands=3))
+    manager.receive_status(GOOD, 0.0)
+    # During recovery commands queue; afterwards synchronous ones wait for acknowledgements.
+    for request_id in (1, 2):
+        assert manager.receive_command(ActivationCommand(request_id, ("Night",)), 0.5) == []
+    manager.tick(1.0)
+    command = ActivationCommand(3, deactivate=("Night",), synchronous=True, timeout=5.0)
+    assert not [a for a in manager.receive_command(command, 1.1) if isinstance(a, Reply)]
+    for request_id in (4, 5):
+        command = ActivationCommand(request_id, ("Night",), synchronous=True, timeout=5.0)
+        assert not [a for a in manager.receive_command(command, 1.2) if isinstance(a, Reply)]
+    assert manager.waiting_commands == 3
+    (refused,) = manager.receive_command(ActivationCommand(6, ("Night",)), 1.3)
+    assert isinstance(refused, Reply) and not refused.result.success
+    assert "at most 3 (max_waiting_commands)" in refused.result.message
+    assert "nothing changed" in refused.result.message
+    manager.receive_status(GOOD, 6.0)
+    manager.tick(7.0)  # the waiting ones answered (timed out): room again
+    assert manager.waiting_commands == 0
+    (accepted, *_) = manager.receive_command(ActivationCommand(7, deactivate=("Night",)), 7.1)
+    assert not isinstance(accepted, Reply) or accepted.result.success

@@ -154,3 +154,28 @@ def test_a_status_with_invalid_utf8_is_ignored(
     after = client.query()
     assert system.manager.popen.poll() is None, "the manager is alive"
     assert (after.epoch, [p.node for p in after.participants]) == (before.epoch, ["/u3"])
+
+
+def test_commands_waiting_for_the_layers_ros_side_are_capped(client: LayerClient) -> None:
+    """In the manager process itself: while bindings are driven, commands queue in the node
+    (they were unbounded); beyond the cap each is refused at once, naming it."""
+    from contextros.protocol import ManagerSettings
+    from contextros.ros import LayerManagerNode
+
+    manager = LayerManagerNode(
+        settings=ManagerSettings(max_waiting_commands=2), node_name="capped_manager"
+    )
+    try:
+        manager.bindings = object()  # type: ignore[assignment]  # commands queue in the node
+        manager._driving = True  # as while a binding is being driven
+        responses = []
+        for _ in range(3):
+            response = Activate.Response()
+            request = Activate.Request(activate=["Night"], synchronous=True, timeout=1.0)
+            responses.append(manager._on_activate(request, response))
+        assert len(manager._commands) == 2
+        assert [r.message for r in responses[:2]] == ["", ""], "waiting"
+        assert not responses[2].success
+        assert "at most 2 (max_waiting_commands)" in responses[2].message
+    finally:
+        manager.destroy_node()

@@ -15,7 +15,10 @@ reordering, duplication and crashes):
   its own epoch and that epoch's active layers;
 - a participant silent for longer than `liveness_timeout` is dropped and reported; two
   live processes under one name are both tracked and neither acknowledges for the other;
-- a status that fails validation (bad names, sizes, implausible epochs) changes nothing.
+- a status that fails validation (bad names, sizes, implausible epochs) changes nothing;
+- memory stays bounded whatever the network sends: what is kept about a node name (its
+  retired incarnations, the nodes it hosts) is forgotten once it is neither live nor among
+  the `keep_dropped` names of dropped nodes, and at most `max_waiting_commands` commands wait.
 """
 
 from __future__ import annotations
@@ -94,6 +97,10 @@ class ManagerSettings:
     # epoch it heard: its predecessor may have published states that no participant
     # reported during recovery, and an epoch must never name two configurations.
     memoryless_epoch_gap: int = 1000
+    # Commands waiting in the manager at once (synchronous ones for their acknowledgements,
+    # others during recovery, an atomic vote or the unknown-layer grace): beyond it a new
+    # command is refused at once, naming the limit. Anyone in the domain can send commands.
+    max_waiting_commands: int = 1000
 
 
 @dataclass
@@ -221,6 +228,12 @@ class ManagerProtocol:
     def dropped(self) -> tuple[str, ...]:
         return tuple(self._dropped)
 
+    @property
+    def waiting_commands(self) -> int:
+        """Commands received and not answered yet (bounded by `max_waiting_commands`)."""
+        waiting = len(self._pending) + len(self._queued) + len(self._held)
+        return waiting + len(self._behind_transaction) + (self._transaction is not None)
+
     def declarations(self) -> dict[str, LayerDeclaration]:
         """The union of every live participant's declarations (merged once per set of
         reports: a command asks for it several times). Do not modify the result."""
@@ -310,6 +323,14 @@ class ManagerProtocol:
         problems = command_problems(command)
         if problems:
             message = f"invalid command: {'; '.join(problems)}; nothing changed"
+            return [Reply(command.request_id, self._result(False, message))]
+        waiting = self.waiting_commands
+        if waiting >= self.settings.max_waiting_commands:
+            message = (
+                f"refused: {waiting} commands are waiting in the manager already, at most "
+                f"{self.settings.max_waiting_commands} (max_waiting_commands); nothing changed, "
+                "try again later"
+            )
             return [Reply(command.request_id, self._result(False, message))]
         if self.recovering:
             self._queued.append((command, now))
@@ -811,7 +832,11 @@ class ManagerProtocol:
         if not still_there:
             if node in self._dropped:
                 self._dropped.remove(node)
+            if self._dropped.maxlen and len(self._dropped) >= self._dropped.maxlen:
+                self._forget(self._dropped[0])  # pushed out of the kept dropped names next
             self._dropped.append(node)
+            if node not in self._dropped:  # keep_dropped == 0
+                self._forget(node)
         for pending in self._pending:
             if key in pending.waiting:
                 pending.waiting.discard(key)
@@ -821,6 +846,14 @@ class ManagerProtocol:
         if self._transaction is not None and key in self._transaction.targets:
             actions += self._abort(now, {node: f"lost before the commit ({why})"})
         return [*actions, *self._settle_pending(now)]
+
+    def _forget(self, node: str) -> None:
+        """What is kept about `node` past its drop, unless it is live again (bounded memory:
+        only live participants and the kept dropped names have entries)."""
+        if any(k[0] == node for k in self._participants):
+            return
+        self._hosted.pop(node, None)
+        self._retired.pop(node, None)
 
     def _settle_pending(self, now: float) -> list[ManagerAction]:
         replies: list[ManagerAction] = []

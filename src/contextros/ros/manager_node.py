@@ -359,7 +359,8 @@ class LayerManagerNode(Node):
             requester=firing.requester,
             reason=firing.reason,
         )
-        self._command(command)
+        if not self._refused_when_full(command):
+            self._command(command)
 
     def _relations(self) -> dict[str, tuple[frozenset[str], frozenset[str]]]:
         return {
@@ -395,8 +396,23 @@ class LayerManagerNode(Node):
         request_id = self._next_request_id
         self._responses.expect(request_id, response)
         command = command_from_request(request_id, request)
-        self._command(command)
+        if not self._refused_when_full(command):
+            self._command(command)
         return response
+
+    def _refused_when_full(self, command: ActivationCommand) -> bool:
+        """Commands waiting for the layers' ROS side are bounded like the protocol's (anyone
+        in the domain can send them): beyond the cap, refused at once naming it."""
+        cap = self.settings.max_waiting_commands
+        if len(self._commands) < cap:
+            return False
+        message = (
+            f"refused: {len(self._commands)} commands are waiting in the manager already, "
+            f"at most {cap} (max_waiting_commands); nothing changed, try again later"
+        )
+        state = self.protocol.state
+        self._reply(command.request_id, ActivationResult(False, message, state.epoch, state.active))
+        return True
 
     def _on_query(self, request: Any, response: Any) -> Any:
         del request
