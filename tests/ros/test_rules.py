@@ -199,3 +199,44 @@ def test_a_byte_field_is_a_number_and_a_raising_rule_does_not_stop_the_manager(
 class UInt8Like:
     def __init__(self, data: object) -> None:
         self.data = data
+
+
+def test_a_manual_command_drops_the_refused_firings_older_than_it(client: LayerClient) -> None:
+    """Night refused, the operator switches to Day: the retry after the operator's state
+    activated Night and dropped Day. In a manager in this process, its own namespace."""
+    from contextros.protocol import LayerState, PublishState
+    from contextros.ros import LayerManagerNode
+    from contextros.rules import Firing, Rule, RuleSet
+
+    rules = RuleSet.from_rules([Rule("Dark", "Night while light.lux < 10")])
+    manager = LayerManagerNode(rules=rules, node_name="m", namespace="/refused_firings")
+    try:
+        runner = manager.rules
+        assert runner is not None
+        sent: list[Firing] = []
+        runner._submit = sent.append  # type: ignore[method-assign]
+        night = Firing("Dark", ("Night",), (), "light.lux < 10", 0)
+
+        def state(epoch: int, requester: str) -> None:
+            manager._run([PublishState(LayerState(epoch, ("Day",), requester=requester))])
+
+        # Refused, then the operator's state: the refusal is dropped, not retried.
+        runner._fire([night])
+        runner.refused(night)
+        state(1, "operator")
+        runner.retry()
+        assert sent == [night], "no retry over the operator's state"
+        # Refused only after the operator's state came (its command was under way): dropped.
+        runner._fire([night])
+        state(2, "operator")
+        runner.refused(night)
+        runner.retry()
+        assert sent == [night, night]
+        # A state another rule (or the manager's recovery) caused: retried as before.
+        runner._fire([night])
+        runner.refused(night)
+        state(3, "manager")
+        runner.retry()
+        assert sent == [night, night, night, night]
+    finally:
+        manager.destroy_node()

@@ -436,6 +436,8 @@ class LayerManagerNode(Node):
             if isinstance(action, PublishState):
                 if self.state_file:
                     self._save(action.state)
+                if self.rules is not None:  # a manual command's state drops refused firings
+                    self.rules.published(action.state)
                 self._state_pub.publish(state_to_msg(action.state, time.time()))
                 self._postponed_logs.append(
                     f"epoch {action.state.epoch}: [{', '.join(action.state.active)}] "

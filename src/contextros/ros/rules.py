@@ -18,6 +18,8 @@ from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from contextros.language.diagnostics import Diagnostic
+from contextros.protocol import LayerState
+from contextros.protocol.manager import RECOVERY_REQUESTER
 from contextros.rules import Firing, RuleEngine, RuleSet
 from contextros.rules.ruleset import FieldKind
 
@@ -115,8 +117,12 @@ class RuleRunner:
         self._subscriptions: list[Any] = []
         self.errors: list[Diagnostic] = []
         # Firings the manager refused (a relation, say): tried again after each new state
-        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings").
+        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings"), or
+        # a state no rule caused (an operator's command) is published: that one stands.
         self._refused: dict[str, Firing] = {}
+        self._requesters = {f"rule {rule.name}" for rule in rules.rules} | {RECOVERY_REQUESTER}
+        self._manual_states = 0  # states published that no rule caused, so far
+        self._submitted_at: dict[str, int] = {}  # rule -> _manual_states when it last fired
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
             node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
@@ -189,15 +195,40 @@ class RuleRunner:
         self._fire(self.engine.tick(time.monotonic()))
 
     def refused(self, firing: Firing) -> None:
-        """The manager refused `firing`: keep it for the next state (unless newer)."""
+        """The manager refused `firing`: keep it for the next state (unless newer), unless a
+        manual command set a state since it was submitted (that command stands)."""
+        if self._submitted_at.get(firing.rule, self._manual_states) != self._manual_states:
+            self._dropped(firing)
+            return
         self._refused.setdefault(firing.rule, firing)
+
+    def published(self, state: LayerState) -> None:
+        """The manager published `state`. One that no rule and no recovery caused is a manual
+        command: it stands until a rule's condition changes, so the refused firings, older
+        than it, are dropped (docs/rules.md, "manual commands and rules")."""
+        if state.requester in self._requesters:
+            return
+        self._manual_states += 1
+        for firing in self._refused.values():
+            self._dropped(firing)
+        self._refused.clear()
+
+    def _dropped(self, firing: Firing) -> None:
+        self.node.get_logger().info(
+            f"{firing.requester}: its refused firing is dropped, a manual command came after "
+            "it (it acts again when its condition changes)"
+        )
 
     def retry(self) -> None:
         """A new state: the refused firings may pass now (in file order)."""
         waiting = sorted(self._refused.values(), key=lambda f: f.priority)
         self._refused.clear()
         for firing in waiting:
-            self._submit(firing)
+            self._send(firing)
+
+    def _send(self, firing: Firing) -> None:
+        self._submitted_at[firing.rule] = self._manual_states
+        self._submit(firing)
 
     def _fire(self, firings: list[Firing]) -> None:
         if not firings:
@@ -213,4 +244,4 @@ class RuleRunner:
                 )
         for firing in firings:
             self._refused.pop(firing.rule, None)  # superseded by the rule's new value
-            self._submit(firing)
+            self._send(firing)
