@@ -349,6 +349,20 @@ class ManagerProtocol:
             return problem, self._state.active
         return "", self._next_active(command)
 
+    def would_hold(self, command: ActivationCommand, now: float) -> bool:
+        """Whether `receive_command(command, now)` would keep `command` waiting rather than
+        decide it (changing nothing): the manager recovers, an atomic vote is open, or the
+        command names a layer nobody implements yet within the grace period. An adapter
+        with work to do before a state is published (layers that drive ROS) keeps such a
+        command itself until this is False, then previews it."""
+        if command_problems(command):
+            return False
+        if self.recovering or self._transaction is not None:
+            return True
+        self._order_cache = None
+        problem, unknown = self._validate(command)
+        return bool(problem) and unknown and now < self._grace_until
+
     def tick(self, now: float) -> list[ManagerAction]:
         self._order_cache = None
         actions: list[ManagerAction] = []
