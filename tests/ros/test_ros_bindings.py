@@ -4,6 +4,7 @@ when a node rejects a parameter or a transition fails."""
 
 from __future__ import annotations
 
+import signal
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -18,7 +19,8 @@ from rclpy.node import Node
 
 from contextros.protocol import LayerState
 from contextros.ros import LayerClient
-from tests.ros.processes import HERE, ProcessGroup
+from contextros.ros.messages import result_from_response
+from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, settle, wait_registry
 
 LAYERS = """\
@@ -98,6 +100,27 @@ def test_a_rejected_parameter_refuses_the_state(system: ProcessGroup, client: La
     assert max_speed(client) == 1.0
 
 
+def test_an_atomic_command_changing_the_ros_side_is_refused(
+    system: ProcessGroup, client: LayerClient
+) -> None:
+    """Participants vote, the bound nodes cannot: an atomic switch of a layer with
+    parameters is refused before any vote, and nothing is set; one without goes ahead."""
+    before = settle(client)
+    plain = system.children[0]
+    seen = len(plain.events)
+    result = client.request(["Slow"], atomic=True, timeout=5)
+    assert not result.success
+    assert result.message == (
+        "atomic activation not started, nothing changed: Slow sets ROS parameters or "
+        "lifecycle states, which an atomic vote cannot include; switch without atomic"
+    )
+    assert client.query().epoch == before.epoch
+    assert max_speed(client) == 1.0
+    assert not [e for e in plain.events[seen:] if e["event"] == "parameter"]
+    night = client.request(["Night"], atomic=True, timeout=5)
+    assert night.success, night.message
+
+
 def test_a_layer_requires_lifecycle_states(system: ProcessGroup, client: LayerClient) -> None:
     settle(client)
     result = client.request(["Indoor"], synchronous=True, timeout=5)
@@ -147,6 +170,89 @@ def test_a_failed_transition_refuses_the_state_and_rolls_back(
             SetParameters.Request(parameters=[refuse]),
         )
     time.sleep(0.1)
+
+
+def parameter_events(plain: Child, seen: int) -> list[Any]:
+    return [e["value"] for e in plain.events[seen:] if e["event"] == "parameter"]
+
+
+def test_a_command_behind_an_atomic_vote_sets_its_parameters_after_the_vote(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """The vote stays open (a participant is stopped) until that participant is dropped; a
+    command sent meanwhile waits for the outcome before its parameters are set: once."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text(LAYERS, encoding="utf-8")
+    robot = ("--ros-args", "-r", "__ns:=/vote")
+    plain = processes.start("vote plain nodes", [str(HERE / "plain_nodes_process.py"), *robot])
+    processes.participant("v1", *robot)
+    stopped = processes.participant("v2", *robot)
+    plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+    processes.manager("--liveness-timeout", LIVENESS, "--layers", str(layers), *robot, name="vote")
+    node = Node("vote_client", namespace="/vote")
+    try:
+        voting = LayerClient(node, "pytest")
+        voting.wait_for_manager(15.0)
+        wait_registry(
+            voting,
+            lambda r: not r.recovering and r.epoch >= 1 and len(r.participants) == 2,
+        )
+        seen = len(plain.events)
+        stopped.signal(signal.SIGSTOP)
+        try:
+            # One client, in this order: the vote opens first.
+            vote = voting.request_async(["Night"], atomic=True, timeout=10)
+            slow = voting.request_async(["Slow"], synchronous=True, timeout=10)
+            rclpy.spin_until_future_complete(node, slow, timeout_sec=20)
+            assert slow.done() and vote.done()
+        finally:
+            stopped.signal(signal.SIGCONT)
+        aborted = result_from_response(vote.result())
+        assert not aborted.success and "aborted, nothing changed" in aborted.message
+        result = result_from_response(slow.result())
+        assert result.success, result.message
+        assert list(result.active) == ["Slow"]
+        response = call(
+            voting,
+            GetParameters,
+            "/vote/base/get_parameters",
+            GetParameters.Request(names=["max_speed"]),
+        )
+        assert response.values[0].double_value == pytest.approx(0.3)
+        assert parameter_events(plain, seen) == [pytest.approx(0.3)], "set once, after the vote"
+    finally:
+        node.destroy_node()
+
+
+def test_a_command_for_a_layer_not_known_yet_waits_and_can_still_be_refused(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """Right after recovery a command names a layer whose participant is not heard yet: it
+    waits for it, then its parameter is tried first, and the node's rejection refuses it."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text(LAYERS, encoding="utf-8")
+    robot = ("--ros-args", "-r", "__ns:=/early")
+    plain = processes.start("early plain nodes", [str(HERE / "plain_nodes_process.py"), *robot])
+    plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+    processes.manager("--unknown-layer-grace", "60", "--layers", str(layers), *robot, name="early")
+    node = Node("early_client", namespace="/early")
+    try:
+        early = LayerClient(node, "pytest")
+        early.wait_for_manager(15.0)
+        wait_registry(early, lambda r: not r.recovering)
+        fast = early.request_async(["Fast"], synchronous=True, timeout=5)
+        processes.participant("e1", *robot)
+        rclpy.spin_until_future_complete(node, fast, timeout_sec=30)
+        assert fast.done()
+        result = result_from_response(fast.result())
+        assert not result.success
+        assert (
+            "node /early/base rejected parameter max_speed = 9 (for layer Fast): "
+            "above 5.0 m/s is unsafe; nothing changed" in result.message
+        )
+        assert "Fast" not in early.query().active_layers
+    finally:
+        node.destroy_node()
 
 
 def test_a_command_during_recovery_waits_for_the_ros_side(

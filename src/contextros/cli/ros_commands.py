@@ -101,6 +101,14 @@ def register(commands: Any) -> None:
         help="listen to participants this long before the first state (default 1 s)",
     )
     manager.add_argument(
+        "--unknown-layer-grace",
+        type=float,
+        default=2.0,
+        metavar="S",
+        help="after recovery, a command naming a layer nobody implements yet waits this long "
+        "for its participant before it is refused (default 2 s)",
+    )
+    manager.add_argument(
         "--layers",
         "--rules",
         dest="layer_files",
@@ -228,6 +236,7 @@ def run_manager(args: argparse.Namespace) -> int:
         liveness_timeout=args.liveness_timeout,
         default_timeout=args.default_timeout,
         recovery_window=args.recovery_window,
+        unknown_layer_grace=args.unknown_layer_grace,
     )
     rules = bindings = None
     if args.layer_files:

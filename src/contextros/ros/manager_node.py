@@ -219,6 +219,8 @@ class LayerManagerNode(Node):
             self.get_logger().error(f"ignored an unreadable status message: {error}")
             return
         self._run(self.protocol.receive_status(report, time.monotonic()))
+        if self._commands and not self._driving:  # an atomic vote or a held layer may be over
+            self._next_command()
 
     def _on_tick(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))
@@ -246,16 +248,43 @@ class LayerManagerNode(Node):
         until those are done (in a worker thread) and is refused, naming what failed, if
         they cannot be."""
         assert self.bindings is not None
-        # While the manager recovers, commands wait here (the protocol would queue them and
-        # run them at the end of recovery, past the ROS side): the tick brings them back.
-        while self._commands and not self._driving and not self.protocol.recovering:
-            command = self._commands.popleft()
+        # A command the protocol would hold (the manager recovers, an atomic vote is open, a
+        # layer nobody implements yet within the grace period) waits here, with those behind
+        # it: held there, it would be published on its release past the ROS side. The tick
+        # and the statuses bring it back.
+        while self._commands and not self._driving:
+            command = self._commands[0]
+            if self.protocol.would_hold(command, time.monotonic()):
+                return
+            self._commands.popleft()
             problem, planned = self.protocol.preview(command)
             applied = self.bindings.applied
-            if problem or not self.bindings.plan(applied, planned):
+            refusal = "" if problem or not command.atomic else self._atomic_refusal(planned)
+            if refusal:
+                state = self.protocol.state
+                self._reply(
+                    command.request_id, ActivationResult(False, refusal, state.epoch, state.active)
+                )
+            elif problem or not self.bindings.plan(applied, planned):
                 self._run(self.protocol.receive_command(command, time.monotonic()))
-                continue
-            self._drive(command, applied, planned)
+            else:
+                self._drive(command, applied, planned)
+
+    def _atomic_refusal(self, planned: tuple[str, ...]) -> str:
+        """Why an atomic command that would change ROS parameters or lifecycle states is
+        refused ("" if it would not): its participants vote, the bound nodes cannot, and
+        an aborted vote must leave nothing changed anywhere (docs/ros-integration.md)."""
+        assert self.bindings is not None
+        current = self.protocol.state.active
+        if not self.bindings.plan(current, planned):
+            return ""
+        bound = self.bindings.bindings.layers()
+        names = sorted((set(planned) ^ set(current)) & bound) or sorted(set(planned) & bound)
+        return (
+            "atomic activation not started, nothing changed: "
+            f"{', '.join(names)} set{'s' if len(names) == 1 else ''} ROS parameters or "
+            "lifecycle states, which an atomic vote cannot include; switch without atomic"
+        )
 
     def _drive(
         self, command: ActivationCommand | None, old: tuple[str, ...], new: tuple[str, ...]
@@ -295,6 +324,10 @@ class LayerManagerNode(Node):
                     self.protocol.state.active,
                 )
                 self._reply(command.request_id, result)
+            elif self.protocol.would_hold(command, time.monotonic()):
+                # Its layer's only participant left meanwhile: back to the front of the
+                # queue; the reconcile brings ROS back to the published state.
+                self._commands.appendleft(command)
             else:
                 self._run(self.protocol.receive_command(command, time.monotonic()))
         # Waiting commands first: a failed reconcile must not starve them (each of its
