@@ -122,3 +122,43 @@ def test_a_vote_is_yes_unless_a_critical_section_or_a_relation_says_no() -> None
     (busy,) = p.receive_proposal(LayerState(4, ("Outdoor",)), now=0.3, veto="arm moving")
     assert isinstance(busy, PublishStatus)
     assert busy.report.vote_reason == "arm moving; in a critical section"
+
+
+def test_a_successor_carries_on_from_the_participant_it_replaces() -> None:
+    # The carrier node of a process goes; the next node carries a new participant (a new
+    # incarnation) for the same process, whose layers are still those applied before.
+    previous = participant()
+    applied = LayerState(5, ("Night",), manager_id="m1")
+    previous.receive_state(applied, now=0.0)
+    previous.applied(applied, now=0.0)
+    successor = ParticipantProtocol("/q", "inc-2", (LayerDeclaration("Night"),))
+    successor.continue_from(previous)
+    (announced,) = successor.announce(now=1.0)
+    assert isinstance(announced, PublishStatus)
+    report = announced.report
+    assert (report.applied_epoch, report.active, report.applied_manager_id) == (
+        5,
+        ("Night",),
+        "m1",
+    )
+    assert successor.receive_state(LayerState(4, ()), now=1.1) == [], "never back a state"
+    assert successor.receive_state(applied, now=1.2) == [], "the same manager: nothing new"
+    newer = LayerState(6, (), manager_id="m1")
+    assert successor.receive_state(newer, now=1.3) == [ApplyState(newer)]
+
+
+def test_a_memoryless_manager_recovers_a_handed_over_process_s_layers() -> None:
+    from contextros.protocol import ManagerProtocol, ManagerSettings, PublishState
+
+    previous = participant()
+    applied = LayerState(5, ("Night",), manager_id="m1")
+    previous.applied(applied, now=0.0)
+    successor = ParticipantProtocol("/q", "inc-2", (LayerDeclaration("Night"),))
+    successor.continue_from(previous)
+    (announced,) = successor.announce(now=0.0)
+    assert isinstance(announced, PublishStatus)
+    manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0, manager_id="m2"))
+    manager.receive_status(announced.report, 0.1)
+    (state,) = [a.state for a in manager.tick(1.0) if isinstance(a, PublishState)]
+    assert state.active == ("Night",) and state.epoch > 5
+    assert state.reason == "recovered from /q"

@@ -40,10 +40,20 @@ def test_the_next_context_node_takes_the_shared_participant_over(client: LayerCl
     assert second.context_participant is shared and third.context_participant is shared
     assert own.context_participant is not shared
     assert shared.hosted_nodes == ("/second_of_process", "/third_of_process")
+    applied = LayerState(epoch=5, active=("Night",), manager_id="m1")
+    shared.protocol.applied(applied, 0.0)  # as if the manager's state had been applied
+    shared.state = applied
 
     first.destroy_node()
     successor = second.context_participant
     assert successor is not shared and successor.node is second
+    # It carries on from the process's epoch, layers and manager (it started at epoch 0:
+    # an older state could take the process back, a memoryless manager heard "nothing").
+    assert successor.protocol.incarnation != shared.protocol.incarnation
+    assert successor.applied_epoch == 5 and successor.state == applied
+    report = successor.protocol.report()
+    assert (report.active, report.applied_manager_id) == (("Night",), "m1")
+    assert successor.protocol.receive_state(LayerState(epoch=4, active=()), 1.0) == []
     assert third.context_participant is successor
     assert successor.hosted_nodes == ("/third_of_process",)
     assert successor._listeners and successor._listeners[0].__name__ == "<lambda>"

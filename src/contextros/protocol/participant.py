@@ -116,6 +116,22 @@ class ParticipantProtocol:
             vote_manager_id=self.vote_manager_id,
         )
 
+    def continue_from(self, previous: ParticipantProtocol) -> None:
+        """Carry on for the process from `previous`, the participant this one replaces (its
+        node went, another node of the process carries the participant now). The process's
+        layers are what `previous` applied: without its epoch a reordered older state could
+        take them back, and a recovering manager without memory would hear "epoch 0" from
+        this process. Call it before `announce`. A switch `previous` deferred is not carried
+        (its acknowledgement went with it): the manager's states bring it again."""
+        self.applied_epoch = previous.applied_epoch
+        self.applied_manager_id = previous.applied_manager_id
+        self.active = previous.active
+        self.failed_epoch = previous.failed_epoch
+        self.error = previous.error
+        self.manager_id = previous.manager_id
+        self.manager_lost = previous.manager_lost
+        self._manager_heard = previous._manager_heard
+
     # -- events -----------------------------------------------------------------------------
 
     def announce(self, now: float) -> list[ParticipantAction]:

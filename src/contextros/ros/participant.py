@@ -116,6 +116,7 @@ class ContextParticipant:
         *,
         heartbeat_period: float = DEFAULT_HEARTBEAT_PERIOD,
         manager_timeout: float = DEFAULT_MANAGER_TIMEOUT,
+        _previous: ContextParticipant | None = None,
     ) -> None:
         self.node = node
         declarations = declarations_of(layers)
@@ -129,6 +130,9 @@ class ContextParticipant:
             manager_timeout=manager_timeout,
         )
         self.state: LayerState | None = None
+        if _previous is not None:  # a hand-over: the process's epoch and layers carry on
+            self.protocol.continue_from(_previous.protocol)
+            self.state = _previous.state
         self._listeners: list[StateListener] = []
         self._manager_listeners: list[ManagerListener] = []
         self._vetoes: list[Veto] = []
@@ -342,7 +346,8 @@ class ContextNode(Node):
     The layer configuration is per process, so the context nodes of one process share one
     participant (`share_participant=True`, the default): the first one carries it, the
     others are announced as hosted by it, and the manager waits for one acknowledgement per
-    process. If the carrying node is destroyed first, the next one takes over.
+    process. If the carrying node is destroyed first, the next one takes over, with a new
+    incarnation but carrying on from the process's applied epoch, layers and manager.
     `share_participant=False` gives the node a participant of its own.
     """
 
@@ -400,6 +405,7 @@ def _hand_over(previous: ContextParticipant, hosted: list[ContextNode]) -> None:
         successor._context_layers,
         heartbeat_period=successor._heartbeat_period,
         manager_timeout=successor._manager_timeout,
+        _previous=previous,
     )
     participant._listeners = previous._listeners
     participant._manager_listeners = previous._manager_listeners
