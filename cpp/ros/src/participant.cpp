@@ -220,35 +220,62 @@ struct Participant::Impl {
     run(happen());
   }
 
+  // Called with `mutex` held. A switch the runtime settles at once is recorded at once (the
+  // next state taken in this wake-up is compared with it); a deferred one goes through the
+  // inbox.
   void apply(const LayerState& state) {
     // A deferred switch may settle after this participant is gone: the callback holds the
-    // inbox, not the participant.
+    // inbox, not the participant. Called on this thread during set_active, the callback
+    // is the synchronous one: its outcome is the one returned.
     std::shared_ptr<Inbox> box = inbox;
-    const SwitchOutcome outcome = set_active(state.active, [box, state](const SwitchOutcome& done) {
-      box->post(state, done);  // on this thread, or on the one closing the critical section
-    });
+    auto in_call = std::make_shared<std::atomic<bool>>(true);
+    const std::thread::id caller = std::this_thread::get_id();
+    SwitchOutcome outcome{SwitchStatus::failed, 0, ""};
+    try {
+      outcome = set_active(state.active, [box, state, in_call, caller](const SwitchOutcome& done) {
+        if (in_call->load() && std::this_thread::get_id() == caller) return;
+        box->post(state, done);  // on the thread closing the critical section
+      });
+    } catch (const std::exception& error) {
+      outcome.error = error.what();
+    } catch (...) {
+      outcome.error = "the switch threw";
+    }
+    in_call->store(false);
     if (outcome.status == SwitchStatus::deferred) {
       run(protocol.deferred(state, Clock::now()));
+    } else {
+      settle(state, outcome);
     }
   }
 
-  // Reports the switches the runtime settled since the last call; returns the applied ones.
-  std::vector<LayerState> settle() {
-    std::vector<LayerState> applied;
-    for (const auto& [state, outcome] : inbox->take()) {
-      if (outcome.status == SwitchStatus::applied) {
-        event([&] {
-          if (state.epoch > protocol.applied_epoch()) {
-            applied.push_back(state);
-          }
-          return protocol.applied(state, Clock::now());
-        });
-      } else {
-        const std::string why = outcome.error.empty() ? "the switch was dropped" : outcome.error;
-        event([&] { return protocol.failed(state, why, Clock::now()); });
+  // Called with `mutex` held: reports a settled switch; an applied one is told to the
+  // listeners (later, without the lock).
+  void settle(const LayerState& state, const SwitchOutcome& outcome) {
+    if (outcome.status == SwitchStatus::applied) {
+      if (state.epoch > protocol.applied_epoch()) {
+        applied_states.push_back(state);
       }
+      run(protocol.applied(state, Clock::now()));
+    } else {
+      const std::string why = outcome.error.empty() ? "the switch was dropped" : outcome.error;
+      RCUTILS_LOG_ERROR_NAMED(logger, "cannot apply epoch %llu: %s",
+                              static_cast<unsigned long long>(state.epoch), why.c_str());
+      run(protocol.failed(state, why, Clock::now()));
     }
-    return applied;
+  }
+
+  // Reports the deferred switches the runtime settled since the last call; returns the
+  // states applied since the last call (deferred or not), for the listeners.
+  std::vector<LayerState> settle_deferred() {
+    for (const auto& [state, outcome] : inbox->take()) {
+      event([&] {
+        settle(state, outcome);
+        return ParticipantActions{};
+      });
+    }
+    std::lock_guard<std::mutex> lock(mutex);
+    return std::exchange(applied_states, {});
   }
 
   void take_states(RclSubscription& subscription) {
@@ -376,7 +403,7 @@ struct Participant::Impl {
       if (set->subscriptions[2] != nullptr) {
         take_proposals();
       }
-      notify(settle());
+      notify(settle_deferred());
       event([&] { return protocol.tick(Clock::now()); });
       notify_manager_changes();
     }
@@ -419,6 +446,7 @@ struct Participant::Impl {
   std::vector<ManagerListener> manager_listeners;
   std::vector<Veto> vetoes;
   std::vector<bool> manager_changes;  // lost (true) / found (false), to tell the listeners
+  std::vector<LayerState> applied_states;  // to tell the listeners
   std::optional<Clock::time_point> last_rejection_logged;
   std::atomic<bool> stopping{false};
   std::thread thread;

@@ -1,0 +1,144 @@
+// The rcl adapter (Participant, ContextNode) in one process: a test node plays the manager
+// on the participant's topics, under a namespace of its own (no other test hears it).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <contextros/contextros.hpp>
+#include <contextros/ros/participant.hpp>
+#include <contextros/ros/rcl_handles.hpp>
+#include <contextros/ros/rcl_node.hpp>
+#include <contextros/ros/topics.hpp>
+#include <contextros_interfaces/msg/layer_state.hpp>
+#include <future>
+#include <memory>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace {
+
+using namespace std::chrono_literals;
+using contextros::ros::ContextNode;
+using contextros::ros::Participant;
+using contextros::ros::RclContext;
+using contextros::ros::RclNode;
+using contextros::ros::RclPublisher;
+using contextros::ros::RclSubscription;
+using contextros::ros::RclWaitSet;
+using contextros::ros::type_support;
+using StateMessage = contextros_interfaces::msg::LayerState;
+
+std::string test_namespace() { return "/adapter_test_" + std::to_string(::getpid()); }
+
+StateMessage state(std::uint64_t epoch, std::vector<std::string> layers) {
+  StateMessage message;
+  message.epoch = epoch;
+  message.active_layers = std::move(layers);
+  message.manager_id = "test-manager";
+  message.requester = "test";
+  return message;
+}
+
+// Polls `done` until it holds or 10 s passed.
+template <class Predicate>
+bool eventually(Predicate done) {
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(5ms);
+  }
+  return true;
+}
+
+// The manager's side: publishes states and heartbeats; probes see what was delivered.
+struct FakeManager {
+  explicit FakeManager(RclContext& context)
+      : node(context, "fake_manager", test_namespace()),
+        states(node.get(), type_support<StateMessage>(), contextros::ros::state_topic,
+               contextros::ros::state_qos()),
+        heartbeats(node.get(), type_support<StateMessage>(), contextros::ros::heartbeat_topic,
+                   contextros::ros::heartbeat_qos()),
+        state_probe(node.get(), type_support<StateMessage>(), contextros::ros::state_topic,
+                    contextros::ros::state_qos()),
+        heartbeat_probe(node.get(), type_support<StateMessage>(),
+                        contextros::ros::heartbeat_topic, contextros::ros::heartbeat_qos()),
+        wait_set(&context.get(), 2, 0) {}
+
+  // Waits until each probe received one message with this epoch (the participant's
+  // subscriptions, matched as long, have them too by then, as a rule).
+  bool delivered(std::uint64_t state_epoch, std::uint64_t heartbeat_epoch) {
+    bool state_seen = false;
+    bool heartbeat_seen = false;
+    return eventually([&] {
+      rcl_wait_set_t* set = wait_set.get();
+      if (rcl_wait_set_clear(set) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(set, state_probe.get(), nullptr) != RCL_RET_OK ||
+          rcl_wait_set_add_subscription(set, heartbeat_probe.get(), nullptr) != RCL_RET_OK ||
+          rcl_wait(set, RCL_MS_TO_NS(5)) != RCL_RET_OK) {
+        rcl_reset_error();
+      }
+      StateMessage message;
+      while (state_probe.take(message)) state_seen |= message.epoch == state_epoch;
+      while (heartbeat_probe.take(message)) heartbeat_seen |= message.epoch == heartbeat_epoch;
+      return state_seen && heartbeat_seen;
+    });
+  }
+
+  // Both the probe and the participant hear the heartbeats.
+  bool heartbeats_matched() {
+    return eventually([&] {
+      std::size_t count = 0;
+      return rcl_publisher_get_subscription_count(heartbeats.get(), &count) == RCL_RET_OK &&
+             count >= 2;
+    });
+  }
+
+  RclNode node;
+  RclPublisher states;
+  RclPublisher heartbeats;
+  RclSubscription state_probe;
+  RclSubscription heartbeat_probe;
+  RclWaitSet wait_set;
+};
+
+class ParticipantAdapter : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    for (const char* name : {"AdapterA", "AdapterB", "AdapterC"}) {
+      contextros::define_layer(contextros::LayerInfo{name, {}, {}, {}, {}});
+    }
+  }
+  void SetUp() override { contextros::set_active({}); }
+
+  RclContext context{0, nullptr};
+};
+
+// Item: a state and an older heartbeat taken in one wake-up. The newer one must stay applied
+// (the older one was stale once the newer one was applied; the runtime must not run it).
+TEST_F(ParticipantAdapter, AnOlderHeartbeatInTheSameWakeUpIsNotApplied) {
+  FakeManager manager(context);
+  RclNode follower(context, "follower", test_namespace());
+  std::promise<void> entered;
+  std::promise<void> release;
+  std::shared_future<void> released = release.get_future().share();
+  Participant participant(follower.get(), {std::vector<std::string>{}});
+  // Holds the participant's thread after epoch 4 while the next two arrive.
+  participant.add_listener([&](const contextros::ros::LayerState& applied) {
+    if (applied.epoch == 4) {
+      entered.set_value();
+      released.wait();
+    }
+  });
+  manager.states.publish(state(4, {"AdapterA"}));
+  ASSERT_EQ(entered.get_future().wait_for(10s), std::future_status::ready);
+  ASSERT_TRUE(manager.heartbeats_matched());
+  manager.states.publish(state(6, {"AdapterC"}));
+  manager.heartbeats.publish(state(5, {"AdapterB"}));
+  ASSERT_TRUE(manager.delivered(6, 5));
+  release.set_value();
+  ASSERT_TRUE(eventually([&] { return participant.applied_epoch() == 6; }));
+  EXPECT_EQ(contextros::active_layers(), std::vector<std::string>{"AdapterC"});
+}
+
+}  // namespace
