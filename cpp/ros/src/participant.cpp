@@ -187,11 +187,12 @@ struct Participant::Impl {
 
   ~Impl() { inbox->close(); }
 
-  // Runs the protocol's actions; called with `mutex` held.
+  // Runs the protocol's actions; called with `mutex` held. States to apply are queued for
+  // event(), which applies them without the lock (the runtime runs observers meanwhile).
   void run(const ParticipantActions& actions) {
     for (const ParticipantAction& action : actions) {
       if (const auto* apply = std::get_if<ApplyState>(&action)) {
-        this->apply(apply->state);
+        to_apply.push_back(apply->state);
       } else if (const auto* publish = std::get_if<PublishStatus>(&action)) {
         // A failure is repeated by the next heartbeat.
         status_publisher.publish(report_to_msg(publish->report));
@@ -214,13 +215,21 @@ struct Participant::Impl {
     }
   }
 
+  // On the participant's thread (or in the constructor): the only caller that applies.
   void event(const std::function<ParticipantActions()>& happen) {
-    std::lock_guard<std::mutex> lock(mutex);
-    protocol.set_critical_section_open(in_critical_section());
-    run(happen());
+    std::vector<LayerState> states;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      protocol.set_critical_section_open(in_critical_section());
+      run(happen());
+      states.swap(to_apply);
+    }
+    for (const LayerState& state : states) {
+      apply(state);
+    }
   }
 
-  // Called with `mutex` held. A switch the runtime settles at once is recorded at once (the
+  // Called without `mutex`. A switch the runtime settles at once is recorded at once (the
   // next state taken in this wake-up is compared with it); a deferred one goes through the
   // inbox.
   void apply(const LayerState& state) {
@@ -242,6 +251,8 @@ struct Participant::Impl {
       outcome.error = "the switch threw";
     }
     in_call->store(false);
+    std::lock_guard<std::mutex> lock(mutex);
+    protocol.set_critical_section_open(in_critical_section());
     if (outcome.status == SwitchStatus::deferred) {
       run(protocol.deferred(state, Clock::now()));
     } else {
@@ -339,6 +350,7 @@ struct Participant::Impl {
     }
     for (bool lost : changes) {
       for (const ManagerListener& listener : to_call) {
+        if (stopping.load()) return;
         try {
           listener(lost);
         } catch (const std::exception& error) {  // a listener must not stop the node
@@ -356,6 +368,7 @@ struct Participant::Impl {
     }
     for (const LayerState& state : applied) {
       for (const StateListener& listener : to_call) {
+        if (stopping.load()) return;  // a listener destroyed the participant
         try {
           listener(state);
         } catch (const std::exception& error) {  // a listener must not stop the node
@@ -404,6 +417,7 @@ struct Participant::Impl {
         take_proposals();
       }
       notify(settle_deferred());
+      if (stopping.load()) break;
       event([&] { return protocol.tick(Clock::now()); });
       notify_manager_changes();
     }
@@ -447,21 +461,29 @@ struct Participant::Impl {
   std::vector<Veto> vetoes;
   std::vector<bool> manager_changes;  // lost (true) / found (false), to tell the listeners
   std::vector<LayerState> applied_states;  // to tell the listeners
+  std::vector<LayerState> to_apply;        // by event(), once `mutex` is released
   std::optional<Clock::time_point> last_rejection_logged;
   std::atomic<bool> stopping{false};
   std::thread thread;
 };
 
 Participant::Participant(rcl_node_t& node, ParticipantOptions options)
-    : impl_(std::make_unique<Impl>(node, options)) {
+    : impl_(std::make_shared<Impl>(node, options)) {
   impl_->event([this] { return impl_->protocol.announce(Clock::now()); });
-  impl_->thread = std::thread([this] { impl_->loop(); });
+  // The thread shares the Impl: destroyed from the thread itself, it outlives ~Participant.
+  impl_->thread = std::thread([impl = impl_] { impl->loop(); });
 }
 
 Participant::~Participant() {
   impl_->stopping.store(true);
   impl_->wake.trigger();
-  impl_->thread.join();
+  const bool own_thread = std::this_thread::get_id() == impl_->thread.get_id();
+  if (own_thread) {
+    // From a listener: the loop stops when it returns and frees the Impl then.
+    impl_->thread.detach();
+  } else {
+    impl_->thread.join();
+  }
   std::lock_guard<std::mutex> lock(impl_->mutex);
   impl_->run(impl_->protocol.leave());
   std::this_thread::sleep_for(leave_repeat_after);
@@ -577,25 +599,33 @@ ContextNode::ContextNode(rcl_node_t& node, ParticipantOptions options) : node_(&
 
 ContextNode::~ContextNode() {
   SharedParticipant& process = shared();
+  std::unique_ptr<Participant> leaving;
+  {
+    std::lock_guard<std::mutex> lock(process.mutex);
+    auto self = std::find_if(process.members.begin(), process.members.end(),
+                             [this](const Member& member) { return member.node == node_; });
+    if (self == process.members.end()) {
+      return;
+    }
+    const bool carrier = self == process.members.begin();
+    const std::string name = self->name;
+    process.members.erase(self);
+    if (!carrier) {
+      process.participant->release(name);
+      return;
+    }
+    leaving = std::move(process.participant);
+  }
+  // Destroyed without the lock: its thread may be in a listener that takes it.
+  leaving.reset();  // leaves
   std::lock_guard<std::mutex> lock(process.mutex);
-  auto self = std::find_if(process.members.begin(), process.members.end(),
-                           [this](const Member& member) { return member.node == node_; });
-  if (self == process.members.end()) {
-    return;
-  }
-  const bool carrier = self == process.members.begin();
-  const std::string name = self->name;
-  process.members.erase(self);
-  if (!carrier) {
-    process.participant->release(name);
-    return;
-  }
-  process.participant.reset();  // leaves
-  if (!process.members.empty()) {
+  if (!process.participant && !process.members.empty()) {
     try {
       process.carry_by_first();  // the next node of the process takes over
     } catch (const std::exception& error) {
       std::fprintf(stderr, "contextros: no hand-over of the participant: %s\n", error.what());
+    } catch (...) {
+      std::fprintf(stderr, "contextros: no hand-over of the participant\n");
     }
   }
 }

@@ -142,3 +142,63 @@ TEST_F(ParticipantAdapter, AnOlderHeartbeatInTheSameWakeUpIsNotApplied) {
 }
 
 }  // namespace
+
+namespace {
+
+// Fails the whole program rather than hang when `done` never comes (a deadlock).
+void within_10_s(std::future<void>& done, const char* what) {
+  if (done.wait_for(10s) != std::future_status::ready) {
+    std::fprintf(stderr, "deadlock: %s\n", what);
+    std::_Exit(1);
+  }
+}
+
+// An observer runs on the switching thread; asking the participant must not deadlock.
+TEST_F(ParticipantAdapter, AnObserverMayAskTheParticipant) {
+  FakeManager manager(context);
+  RclNode follower(context, "follower", test_namespace());
+  Participant participant(follower.get(), {std::vector<std::string>{}});
+  std::promise<void> asked;
+  bool once = false;
+  contextros::Subscription ask = contextros::subscribe([&](const contextros::SwitchEvent&) {
+    if (!once) {
+      once = true;
+      (void)participant.applied_epoch();
+      asked.set_value();
+    }
+  });
+  manager.states.publish(state(7, {"AdapterB"}));
+  std::future<void> done = asked.get_future();
+  within_10_s(done, "an observer asked Participant::applied_epoch()");
+  EXPECT_TRUE(eventually([&] { return participant.applied_epoch() == 7; }));
+}
+
+// A listener may ask who carries the participant, and may destroy its own ContextNode: the
+// next node takes over.
+TEST_F(ParticipantAdapter, AListenerMayDestroyItsOwnContextNode) {
+  FakeManager manager(context);
+  RclNode first_node(context, "first", test_namespace());
+  RclNode second_node(context, "second", test_namespace());
+  // Shared with the listener, which stays registered with the process after this test.
+  struct Drop {
+    std::unique_ptr<ContextNode> first;
+    std::string first_name;
+    std::promise<void> dropped;
+  };
+  auto drop = std::make_shared<Drop>();
+  drop->first = std::make_unique<ContextNode>(first_node.get());
+  drop->first_name = first_node.fully_qualified_name();
+  ContextNode second(second_node.get());
+  ContextNode::add_listener([drop](const contextros::ros::LayerState&) {
+    if (drop->first && ContextNode::carrier() == drop->first_name) {
+      drop->first.reset();
+      drop->dropped.set_value();
+    }
+  });
+  manager.states.publish(state(8, {"AdapterC"}));
+  std::future<void> done = drop->dropped.get_future();
+  within_10_s(done, "a listener destroyed its own ContextNode");
+  EXPECT_TRUE(eventually([&] { return ContextNode::carrier() == second_node.fully_qualified_name(); }));
+}
+
+}  // namespace

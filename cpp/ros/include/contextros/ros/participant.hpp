@@ -61,7 +61,9 @@ class Participant {
   // Attaches to `node` (not owned), announces itself and starts following the manager on
   // a thread of its own.
   explicit Participant(rcl_node_s& node, ParticipantOptions options = {});
-  // Says it leaves (the manager drops it at once) and stops its thread.
+  // Says it leaves (the manager drops it at once) and stops its thread. Destroyed on its own
+  // thread (by a listener or veto), it cannot join that thread: the thread stops as soon as
+  // the listener returns and frees the rest then (the rcl node must outlive that too).
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
@@ -79,7 +81,7 @@ class Participant {
 
  private:
   struct Impl;
-  std::unique_ptr<Impl> impl_;
+  std::shared_ptr<Impl> impl_;  // shared with its thread
 };
 
 // A node of this process that follows the manager through the process's shared participant.
