@@ -611,7 +611,9 @@ ContextNode::~ContextNode() {
     const std::string name = self->name;
     process.members.erase(self);
     if (!carrier) {
-      process.participant->release(name);
+      if (process.participant) {  // null if a hand-over failed
+        process.participant->release(name);
+      }
       return;
     }
     leaving = std::move(process.participant);
