@@ -141,10 +141,13 @@ std::vector<std::string> checked_names(const std::vector<std::string>& names) {
 
 }  // namespace
 
-LayeredBase::~LayeredBase() {
-  if (!enrolled_) return;
+LayeredBase::~LayeredBase() { unenroll(); }
+
+void LayeredBase::unenroll() noexcept {
+  if (!enrolled_) return;  // set and cleared by the owning thread only
   Runtime& runtime = Runtime::instance();
   std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  enrolled_ = false;
   auto& functions = runtime.functions;
   functions.erase(std::remove(functions.begin(), functions.end(), this), functions.end());
   ++runtime.generation;  // no thread's cache may hand out this function's chains again

@@ -58,6 +58,9 @@ class LayeredBase {
   // Registers with the runtime, which rewires the function at once. The last thing a
   // derived constructor does (the runtime may call rewire() from then on).
   void enroll();
+  // Unregisters (waiting for a switch in progress). The first thing a derived destructor
+  // does: no switch may rewire() a half-destroyed function.
+  void unenroll() noexcept;
 
  private:
   std::string name_;
@@ -126,6 +129,9 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     scoped_entry_ = Node{&Layered::scoped_entry, nullptr, this, ""};
     enroll();
   }
+  ~Layered() override { unenroll(); }
+  Layered(const Layered&) = delete;
+  Layered& operator=(const Layered&) = delete;
 
   // The call: one atomic load and one indirect call.
   R invoke(Self* self, Args... args) const {
