@@ -170,6 +170,9 @@ def test_a_failed_transition_refuses_the_state_and_rolls_back(
             SetParameters.Request(parameters=[refuse]),
         )
     time.sleep(0.1)
+    # The rolled-back restore kept the value from before Slow: turning Slow off brings it back.
+    settle(client)
+    assert max_speed(client) == 1.0
 
 
 def parameter_events(plain: Child, seen: int) -> list[Any]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import threading
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from lifecycle_msgs.msg import State, Transition
@@ -110,17 +111,32 @@ class BindingDriver:
         """Make ROS reflect `new` (coming from `old`); BindingError, rolled back, if not."""
         plan = self.plan(old, new)
         undo: list[tuple[str, Any]] = []
+        # The originals are forgotten only once the whole switch succeeded: a restore that
+        # fails, or one a later step rolls back, must find them again next time.
+        originals = _Originals()
         try:
             for change in plan.parameters:
-                self._parameter(change, undo)
+                self._parameter(change, undo, originals)
             for lifecycle in plan.lifecycles:
-                self._lifecycle(lifecycle, undo)
+                self._lifecycle(lifecycle, undo, originals)
         except BindingError:
-            self._roll_back(undo)
+            if self._roll_back(undo):
+                # Everything is as before: what this switch read first is read again.
+                self._forget(originals.read)
             raise
+        self._forget(originals.restored)
         self.applied = tuple(new)
 
-    def _roll_back(self, undo: list[tuple[str, Any]]) -> None:
+    def _forget(self, keys: list[tuple[str, Any]]) -> None:
+        for kind, key in keys:
+            if kind == "parameter":
+                self._original_parameters.pop(key, None)
+            else:
+                self._original_states.pop(key, None)
+
+    def _roll_back(self, undo: list[tuple[str, Any]]) -> bool:
+        """Undo `undo` in reverse order; False if a step failed (logged)."""
+        complete = True
         for kind, step in reversed(undo):
             try:
                 if kind == "parameter":
@@ -131,15 +147,21 @@ class BindingDriver:
                     for transition_id, label in path:
                         self._change_state(node, transition_id, label)
             except BindingError as error:
+                complete = False
                 self.node.get_logger().error(f"rolling back: {error}")
+        return complete
 
-    def _parameter(self, change: ParameterChange, undo: list[tuple[str, Any]]) -> None:
+    def _parameter(
+        self, change: ParameterChange, undo: list[tuple[str, Any]], originals: _Originals
+    ) -> None:
         key = change.key
         current = self._get(change.node, change.name)
         if key not in self._original_parameters:
             self._original_parameters[key] = current
+            originals.read.append(("parameter", key))
         if change.restore:
-            target = self._original_parameters.pop(key)
+            target = self._original_parameters[key]
+            originals.restored.append(("parameter", key))
             if target.type == ParameterType.PARAMETER_NOT_SET:
                 return  # it had no value before: leave the last one
         else:
@@ -147,11 +169,18 @@ class BindingDriver:
         self._set(change.node, change.name, target, change.layer)
         undo.append(("parameter", (change.node, change.name, current)))
 
-    def _lifecycle(self, change: LifecycleChange, undo: list[tuple[str, Any]]) -> None:
+    def _lifecycle(
+        self, change: LifecycleChange, undo: list[tuple[str, Any]], originals: _Originals
+    ) -> None:
         current = self._get_state(change.node)
         if change.node not in self._original_states:
             self._original_states[change.node] = current
-        wanted = self._original_states.pop(change.node) if change.restore else change.state
+            originals.read.append(("lifecycle", change.node))
+        if change.restore:
+            wanted: str | None = self._original_states[change.node]
+            originals.restored.append(("lifecycle", change.node))
+        else:
+            wanted = change.state
         assert wanted is not None
         try:
             path = transitions(current, wanted)
@@ -237,6 +266,14 @@ class BindingDriver:
             by = f" (for layer {layer})" if layer else ""
             state = f" from {current}" if current else ""
             raise BindingError(f"lifecycle node {node}: transition {label}{state} failed{by}")
+
+
+@dataclass
+class _Originals:
+    """What one switch did to the remembered originals: first read, and restored."""
+
+    read: list[tuple[str, Any]] = field(default_factory=list)
+    restored: list[tuple[str, Any]] = field(default_factory=list)
 
 
 _REVERSE = {

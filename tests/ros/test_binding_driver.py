@@ -1,0 +1,162 @@
+"""The binding driver's memory of original values, with fake nodes (no ROS graph): an
+original is forgotten only once the switch that restores it succeeded, so a failed or
+rolled-back restore finds it again next time."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rcl_interfaces.msg import ParameterType
+
+from contextros.bindings import Bindings
+from contextros.ros.bindings import BindingDriver, BindingError, shown, to_parameter_value
+
+LAYERS = """\
+parameter Slow: /base max_speed = 0.3
+lifecycle Outdoor: /propeller active
+lifecycle Indoor: /propeller inactive
+"""
+_STATES = {1: ("unconfigured", "inactive"), 2: ("inactive", "unconfigured")}
+_STATES |= {3: ("inactive", "active"), 4: ("active", "inactive")}
+
+
+class _Logger:
+    def __init__(self) -> None:
+        self.errors: list[str] = []
+
+    def error(self, text: str) -> None:
+        self.errors.append(text)
+
+
+class _Node:
+    def __init__(self) -> None:
+        self.logger = _Logger()
+
+    def get_namespace(self) -> str:
+        return "/"
+
+    def get_logger(self) -> _Logger:
+        return self.logger
+
+
+class FakeDriver(BindingDriver):
+    """Nodes held in dictionaries; `down` nodes do not answer, `rejecting` nodes refuse
+    every parameter value, `refused` transitions fail."""
+
+    def __init__(self, bindings: Bindings) -> None:
+        super().__init__(_Node(), bindings)  # type: ignore[arg-type]
+        self.parameters: dict[tuple[str, str], Any] = {
+            ("/base", "max_speed"): to_parameter_value(1.0)
+        }
+        self.states = {"/propeller": "unconfigured"}
+        self.down: set[str] = set()
+        self.rejecting: set[str] = set()
+        self.refused: set[str] = set()
+
+    def _answering(self, node: str) -> None:
+        if node in self.down:
+            raise BindingError(f"node {node} does not answer")
+
+    def _get(self, node: str, name: str) -> Any:
+        self._answering(node)
+        return self.parameters[(node, name)]
+
+    def _set(self, node: str, name: str, value: Any, layer: str = "") -> None:
+        self._answering(node)
+        if node in self.rejecting:
+            raise BindingError(f"node {node} rejected parameter {name} = {shown(value)}")
+        self.parameters[(node, name)] = value
+
+    def _get_state(self, node: str) -> str:
+        self._answering(node)
+        return self.states[node]
+
+    def _change_state(
+        self, node: str, transition_id: int, label: str, layer: str = "", current: str = ""
+    ) -> None:
+        self._answering(node)
+        if label in self.refused:
+            raise BindingError(f"lifecycle node {node}: transition {label} failed")
+        before, after = _STATES[transition_id]
+        assert self.states[node] == before
+        self.states[node] = after
+
+    def speed(self) -> str:
+        return shown(self.parameters[("/base", "max_speed")])
+
+
+@pytest.fixture
+def driver(tmp_path: Path) -> FakeDriver:
+    path = tmp_path / "robot.layers"
+    path.write_text(LAYERS, encoding="utf-8")
+    return FakeDriver(Bindings.from_files([path]))
+
+
+def test_a_failed_restore_keeps_the_original_for_the_next_try(driver: FakeDriver) -> None:
+    driver.switch((), ("Slow",))
+    assert driver.speed() == "0.3"
+    driver.rejecting.add("/base")
+    with pytest.raises(BindingError):
+        driver.switch(("Slow",), ())
+    assert driver.applied == ("Slow",) and driver.speed() == "0.3"
+    driver.rejecting.clear()
+    driver.switch(("Slow",), ())
+    assert driver.speed() == "1", "the value from before Slow, not Slow's"
+
+
+def test_a_restore_rolled_back_by_a_later_step_keeps_the_original(driver: FakeDriver) -> None:
+    driver.switch((), ("Indoor", "Slow"))
+    assert (driver.speed(), driver.states["/propeller"]) == ("0.3", "inactive")
+    driver.refused.add("activate")
+    with pytest.raises(BindingError):  # max_speed restored, then rolled back
+        driver.switch(("Indoor", "Slow"), ("Outdoor",))
+    assert (driver.speed(), driver.states["/propeller"]) == ("0.3", "inactive")
+    driver.refused.clear()
+    driver.switch(("Indoor", "Slow"), ("Indoor",))
+    assert driver.speed() == "1"
+    driver.switch(("Indoor",), ())
+    assert driver.states["/propeller"] == "unconfigured"
+
+
+def test_a_failed_lifecycle_restore_keeps_the_original_state(driver: FakeDriver) -> None:
+    driver.switch((), ("Outdoor",))
+    assert driver.states["/propeller"] == "active"
+    driver.refused.add("cleanup")
+    with pytest.raises(BindingError):
+        driver.switch(("Outdoor",), ())
+    assert driver.states["/propeller"] == "active", "deactivate rolled back"
+    driver.refused.clear()
+    driver.switch(("Outdoor",), ())
+    assert driver.states["/propeller"] == "unconfigured"
+
+
+def test_a_rolled_back_first_switch_reads_the_original_again(driver: FakeDriver) -> None:
+    driver.refused.add("activate")
+    with pytest.raises(BindingError):
+        driver.switch((), ("Outdoor", "Slow"))
+    assert driver.speed() == "1"
+    driver.refused.clear()
+    driver.parameters[("/base", "max_speed")] = to_parameter_value(2.0)  # changed by hand
+    driver.switch((), ("Slow",))
+    driver.switch(("Slow",), ())
+    assert driver.speed() == "2"
+
+
+def test_a_node_down_changes_nothing_and_is_tried_again(driver: FakeDriver) -> None:
+    driver.switch((), ("Slow",))
+    driver.down.add("/base")
+    with pytest.raises(BindingError):
+        driver.switch(("Slow",), ())
+    driver.down.clear()
+    driver.switch(("Slow",), ())
+    assert driver.speed() == "1"
+
+
+def test_a_parameter_without_a_value_before_keeps_the_layers(driver: FakeDriver) -> None:
+    driver.parameters[("/base", "max_speed")] = to_parameter_value(None)
+    driver.switch((), ("Slow",))
+    driver.switch(("Slow",), ())
+    assert driver.speed() == "0.3"
+    assert driver.parameters[("/base", "max_speed")].type == ParameterType.PARAMETER_DOUBLE
