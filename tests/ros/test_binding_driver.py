@@ -45,8 +45,8 @@ class FakeDriver(BindingDriver):
     """Nodes held in dictionaries; `down` nodes do not answer, `rejecting` nodes refuse
     every parameter value, `refused` transitions fail."""
 
-    def __init__(self, bindings: Bindings) -> None:
-        super().__init__(_Node(), bindings)  # type: ignore[arg-type]
+    def __init__(self, bindings: Bindings, memory: Path | None = None) -> None:
+        super().__init__(_Node(), bindings, memory=memory)  # type: ignore[arg-type]
         self.parameters: dict[tuple[str, str], Any] = {
             ("/base", "max_speed"): to_parameter_value(1.0)
         }
@@ -87,11 +87,15 @@ class FakeDriver(BindingDriver):
         return shown(self.parameters[("/base", "max_speed")])
 
 
-@pytest.fixture
-def driver(tmp_path: Path) -> FakeDriver:
+def bindings(tmp_path: Path) -> Bindings:
     path = tmp_path / "robot.layers"
     path.write_text(LAYERS, encoding="utf-8")
-    return FakeDriver(Bindings.from_files([path]))
+    return Bindings.from_files([path])
+
+
+@pytest.fixture
+def driver(tmp_path: Path) -> FakeDriver:
+    return FakeDriver(bindings(tmp_path))
 
 
 def test_a_failed_restore_keeps_the_original_for_the_next_try(driver: FakeDriver) -> None:
@@ -160,3 +164,50 @@ def test_a_parameter_without_a_value_before_keeps_the_layers(driver: FakeDriver)
     driver.switch(("Slow",), ())
     assert driver.speed() == "0.3"
     assert driver.parameters[("/base", "max_speed")].type == ParameterType.PARAMETER_DOUBLE
+
+
+def restarted(before: FakeDriver, tmp_path: Path) -> FakeDriver:
+    """A new driver (a restarted manager) on the same nodes and memory file."""
+    after = FakeDriver(bindings(tmp_path), before.memory)
+    after.parameters, after.states = before.parameters, before.states
+    return after
+
+
+def test_a_restarted_manager_still_restores_the_values_from_before(tmp_path: Path) -> None:
+    memory = tmp_path / "state.json.bindings.json"
+    first = FakeDriver(bindings(tmp_path), memory)
+    first.switch((), ("Slow", "Outdoor"))
+    assert (first.speed(), first.states["/propeller"]) == ("0.3", "active")
+    second = restarted(first, tmp_path)
+    assert second.applied == ("Slow", "Outdoor")
+    second.switch(second.applied, ())
+    assert (second.speed(), second.states["/propeller"]) == ("1", "unconfigured")
+    assert restarted(second, tmp_path).applied == ()
+    assert '"parameters": []' in memory.read_text(encoding="utf-8"), "all forgotten"
+
+
+def test_kept_values_keep_their_types(tmp_path: Path) -> None:
+    memory = tmp_path / "memory.json"
+    first = FakeDriver(bindings(tmp_path), memory)
+    for value in (True, 7, 2.0, "eco"):
+        first.parameters[("/base", "max_speed")] = to_parameter_value(value)
+        first._original_parameters.clear()
+        first.switch((), ("Slow",))
+        second = restarted(first, tmp_path)
+        second.switch(("Slow",), ())
+        assert second.parameters[("/base", "max_speed")] == to_parameter_value(value)
+        first.applied = ()
+
+
+def test_a_damaged_memory_is_logged_and_ignored(tmp_path: Path) -> None:
+    memory = tmp_path / "memory.json"
+    for text in (
+        "{",
+        '{"applied": [1], "parameters": [], "lifecycles": {}}',
+        '{"applied": [], "parameters": [{"node": "/base", "name": "x", "type": 3, '
+        '"value": "no"}], "lifecycles": {}}',
+    ):
+        memory.write_text(text, encoding="utf-8")
+        driver = FakeDriver(bindings(tmp_path), memory)
+        assert driver.applied == () and not driver._original_parameters
+        assert "ignored" in driver.node.get_logger().errors[0]  # type: ignore[attr-defined]

@@ -328,3 +328,49 @@ def test_a_failing_reconcile_does_not_block_commands(
         assert list(night.active) == ["Night"]
     finally:
         node.destroy_node()
+
+
+def test_a_restarted_manager_restores_the_values_from_before_its_layers(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """With a state file, the values from before a layer are kept next to it: a manager
+    restarted while Slow is active still puts max_speed back when Slow leaves."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text(LAYERS, encoding="utf-8")
+    robot = ("--ros-args", "-r", "__ns:=/again")
+    plain = processes.start("again plain nodes", [str(HERE / "plain_nodes_process.py"), *robot])
+    processes.participant("a1", *robot)
+    plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+    arguments = ("--state-file", str(tmp_path / "state.json"), "--layers", str(layers), *robot)
+    manager = processes.manager(*arguments, name="again")
+    node = Node("again_client", namespace="/again")
+
+    def speed() -> float:
+        response = call(
+            again,
+            GetParameters,
+            "/again/base/get_parameters",
+            GetParameters.Request(names=["max_speed"]),
+        )
+        return float(response.values[0].double_value)
+
+    try:
+        again = LayerClient(node, "pytest")
+        again.wait_for_manager(15.0)
+        wait_registry(again, lambda r: not r.recovering and len(r.participants) == 1)
+        result = again.request(["Slow"], synchronous=True, timeout=5)
+        assert result.success, result.message
+        assert speed() == pytest.approx(0.3)
+        first = again.query().manager_id
+        manager.signal(signal.SIGTERM)
+        manager.wait_exit()
+        processes.manager(*arguments, name="again, restarted")
+        wait_registry(
+            again,
+            lambda r: r.manager_id != first and not r.recovering and r.epoch > result.epoch,
+        )
+        result = again.request((), ["Slow"], synchronous=True, timeout=5)
+        assert result.success, result.message
+        assert speed() == 1.0, "the value from before Slow, across the restart"
+    finally:
+        node.destroy_node()

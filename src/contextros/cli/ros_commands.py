@@ -77,7 +77,8 @@ def register(commands: Any) -> None:
     manager.add_argument(
         "--state-file",
         type=Path,
-        help="remember the state here, so a restarted manager never reuses an epoch",
+        help="remember the state here, so a restarted manager never reuses an epoch (and, "
+        "with --layers, the parameter values to restore in FILE.bindings.json)",
     )
     manager.add_argument(
         "--liveness-timeout",

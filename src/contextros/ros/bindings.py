@@ -13,9 +13,12 @@ switch already did, in reverse order, and names node, parameter or transition an
 
 from __future__ import annotations
 
+import json
+import os
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from lifecycle_msgs.msg import State, Transition
@@ -81,7 +84,14 @@ def shown(message: Any) -> str:
 class BindingDriver:
     """Applies a `Bindings` plan from one configuration to the next, with rollback."""
 
-    def __init__(self, node: Node, bindings: Bindings, *, call_timeout: float = 2.0) -> None:
+    def __init__(
+        self,
+        node: Node,
+        bindings: Bindings,
+        *,
+        call_timeout: float = 2.0,
+        memory: Path | None = None,
+    ) -> None:
         self.node = node
         self.bindings = bindings
         self.call_timeout = call_timeout
@@ -92,6 +102,63 @@ class BindingDriver:
         self._original_states: dict[str, str] = {}
         self._clients: dict[tuple[str, str], Any] = {}
         self._lock = threading.Lock()
+        # Where `applied` and the originals are kept across restarts (next to the state file).
+        self.memory = memory
+        if memory is not None:
+            self._load(memory)
+
+    # -- memory across restarts ---------------------------------------------------------
+
+    def _load(self, path: Path) -> None:
+        """Take `applied` and the originals from `path`; a damaged file is logged and
+        ignored (the values in place are then taken for the originals, as without one)."""
+        try:
+            if not path.exists():
+                return
+            data = json.loads(path.read_text(encoding="utf-8"))
+            applied = tuple(data["applied"])
+            parameters = {
+                (str(p["node"]), str(p["name"])): _value_from_json(p) for p in data["parameters"]
+            }
+            states = {str(node): str(state) for node, state in data["lifecycles"].items()}
+            if not all(isinstance(name, str) for name in applied) or not all(
+                state in _PRIMARY.values() for state in states.values()
+            ):
+                raise ValueError("unexpected layer names or lifecycle states")
+        except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
+            self.node.get_logger().error(
+                f"ignored {path} (values to restore from before the last restart): {error!r}"
+            )
+            return
+        self.applied = applied
+        self._original_parameters = parameters
+        self._original_states = states
+
+    def _save(self) -> None:
+        if self.memory is None:
+            return
+        parameters = [
+            {"node": node, "name": name, **_value_to_json(value)}
+            for (node, name), value in sorted(self._original_parameters.items())
+        ]
+        text = json.dumps(
+            {
+                "applied": list(self.applied),
+                "parameters": parameters,
+                "lifecycles": dict(sorted(self._original_states.items())),
+            },
+            indent=2,
+        )
+        partial = self.memory.with_name(f".{self.memory.name}.{os.getpid()}.tmp")
+        try:
+            self.memory.parent.mkdir(parents=True, exist_ok=True)
+            with partial.open("w", encoding="utf-8") as stream:
+                stream.write(text)
+                stream.flush()
+                os.fsync(stream.fileno())
+            partial.replace(self.memory)
+        except OSError as error:
+            self.node.get_logger().error(f"{self.memory} not written: {error}")
 
     # -- names --------------------------------------------------------------------------
 
@@ -123,9 +190,11 @@ class BindingDriver:
             if self._roll_back(undo):
                 # Everything is as before: what this switch read first is read again.
                 self._forget(originals.read)
+            self._save()
             raise
         self._forget(originals.restored)
         self.applied = tuple(new)
+        self._save()
 
     def _forget(self, keys: list[tuple[str, Any]]) -> None:
         for kind, key in keys:
@@ -266,6 +335,39 @@ class BindingDriver:
             by = f" (for layer {layer})" if layer else ""
             state = f" from {current}" if current else ""
             raise BindingError(f"lifecycle node {node}: transition {label}{state} failed{by}")
+
+
+# Parameter values kept across restarts: the scalar types a layer can set (any other type
+# is not kept: a restarted manager reads the value in place instead).
+_FIELDS = {
+    ParameterType.PARAMETER_BOOL: ("bool_value", bool),
+    ParameterType.PARAMETER_INTEGER: ("integer_value", int),
+    ParameterType.PARAMETER_DOUBLE: ("double_value", float),
+    ParameterType.PARAMETER_STRING: ("string_value", str),
+}
+
+
+def _value_to_json(message: Any) -> dict[str, Any]:
+    known = _FIELDS.get(message.type)
+    if known is None:
+        return {"type": ParameterType.PARAMETER_NOT_SET, "value": None}
+    return {"type": message.type, "value": getattr(message, known[0])}
+
+
+def _value_from_json(data: Any) -> Any:
+    message = ParameterValue()
+    kind = data["type"]
+    if kind == ParameterType.PARAMETER_NOT_SET:
+        return message
+    field_name, kind_type = _FIELDS[kind]
+    value = data["value"]
+    if kind_type is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if type(value) is not kind_type:
+        raise ValueError(f"parameter value {value!r} is not of type {kind}")
+    message.type = kind
+    setattr(message, field_name, value)
+    return message
 
 
 @dataclass

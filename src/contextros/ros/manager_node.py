@@ -203,7 +203,12 @@ class LayerManagerNode(Node):
         if bindings:
             from contextros.ros.bindings import BindingDriver
 
-            self.bindings = BindingDriver(self, bindings)
+            # With a state file, what ROS reflects and the values to restore are kept next
+            # to it: a restarted manager still restores the values from before its layers.
+            memory = (
+                state_file.with_name(f"{state_file.name}.bindings.json") if state_file else None
+            )
+            self.bindings = BindingDriver(self, bindings, memory=memory)
         self.rules: RuleRunner | None = None
         if rules is not None and rules.rules:
             from contextros.ros.rules import RuleRunner
