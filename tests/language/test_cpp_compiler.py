@@ -332,3 +332,26 @@ def test_trailing_returns_references_noexcept_attributes_and_braced_defaults(
     assert build.returncode == 0, build.stderr
     run = subprocess.run([tmp_path / "forms"], capture_output=True, text=True, timeout=60)
     assert run.stdout == "7 r 3 20 5\n", run.stderr
+
+
+PREFIXED_NAMES = """\
+class Robot {
+ public:
+  int pos_ = 3;
+};
+
+Layer Indoor [
+int Robot::getPos() { return pos_; }
+int Robot::get() { return pos_ * 2; }  // a prefix of getPos: declared too
+]
+"""
+
+
+def test_a_method_named_like_a_prefix_of_another_is_declared(tmp_path: Path) -> None:
+    (tmp_path / "prefixed.cpp.layers").write_text(PREFIXED_NAMES)
+    layers = str(tmp_path / "prefixed.cpp.layers")
+    assert main(["compile", layers, "-o", str(tmp_path / "prefixed.layers.cpp")]) == 0
+    header = (tmp_path / "prefixed.layers.hpp").read_text()
+    assert "int get()" in header and "int getPos()" in header
+    build = cxx("-std=c++17", "-Werror", "-c", "prefixed.layers.cpp", "-o", "p.o", cwd=tmp_path)
+    assert build.returncode == 0, build.stderr

@@ -183,6 +183,7 @@ class _Emitter:
     def injected(self, text: str) -> str:
         """The header part, with what layered methods need added to its classes."""
         additions: dict[int, list[str]] = {}
+        declared: dict[int, set[str]] = {}  # names declared by the compiler, per class
         for key, functions in self.methods.items():
             first = functions[0]
             if first.owner is None:
@@ -191,7 +192,9 @@ class _Emitter:
             if cls is None:
                 continue
             parts = additions.setdefault(cls.close, [])
-            if first.name not in cls.methods and not any(first.name in p for p in parts):
+            names = declared.setdefault(cls.close, set())
+            if first.name not in cls.methods and first.name not in names:
+                names.add(first.name)
                 declaration = self.declaration_text(
                     self.dispatch_source(functions), qualified=False
                 )
