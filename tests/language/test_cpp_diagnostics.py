@@ -5,12 +5,14 @@ layer files only ever raise the language's own errors."""
 from __future__ import annotations
 
 import random
+from pathlib import Path
 
 import pytest
 
+from contextros.cli import main
 from contextros.language import LayerLanguageError, LayerSyntaxError, check_source
 from contextros.language.cpp.generator import compile_cpp
-from tests.language.test_cpp_compiler import CPP_FIXTURES
+from tests.language.test_cpp_compiler import CPP_FIXTURES, cxx
 
 OK = "int f() { return 1; }\n"
 
@@ -86,6 +88,20 @@ BROKEN = {
     ),
     "variadic": ("Layer A [\nint f(int n, ...) { return n; }\n]\n", 2, 14, "variadic"),
     "destructor": ("struct R { ~R(); };\nLayer A [\nR::~R() {}\n]\n", 3, 1, "cannot layer 'R::~R'"),
+    "static method": (
+        "#include <string>\nstruct R {\n  static int count();\n};\nLayer A [\n"
+        "int R::count() { return 1; }\n]\n",
+        6,
+        8,
+        "cannot layer R::count: class R declares it static",
+    ),
+    "namespaced free function": (
+        "#include <string>\nnamespace nav {\nint speed(int x);\n}\nLayer A [\n"
+        "int nav::speed(int x) { return x; }\n]\n",
+        6,
+        10,
+        "cannot layer nav::speed: nav is a namespace",
+    ),
     "unknown class": (
         "Layer A [\nint Robot::f() { return 1; }\n]\n",
         2,
@@ -191,3 +207,17 @@ def test_mutated_files_only_raise_the_languages_errors(fixture: str) -> None:
         except LayerLanguageError as error:
             assert error.line >= 1 and error.col >= 1
             assert any(d.is_error for d in diagnostics)
+
+
+def test_a_function_of_an_unseen_scope_must_be_a_method_where_cpp_can_tell(tmp_path: Path) -> None:
+    """Behind an #include the compiler cannot see whether `nav` is a class or a namespace:
+    the generated code asserts it, located in the layer file."""
+    (tmp_path / "nav.hpp").write_text("namespace nav {\nint speed(int x);\n}\n")
+    layers = tmp_path / "hidden.cpp.layers"
+    layers.write_text('#include "nav.hpp"\n\nLayer A [\nint nav::speed(int x) { return x; }\n]\n')
+    assert main(["compile", str(layers), "-o", str(tmp_path / "hidden.layers.cpp")]) == 0
+    build = cxx("-std=c++17", "-c", "hidden.layers.cpp", "-o", "hidden.o", cwd=tmp_path)
+    assert build.returncode != 0
+    first = next(line for line in build.stderr.splitlines() if "error" in line)
+    assert first.startswith("hidden.cpp.layers:4:"), build.stderr
+    assert "cannot layer nav::speed: not a non-static member function" in first

@@ -324,6 +324,15 @@ class _Emitter:
             first.name if first.owner is None else f"{first.owner.replace('::', '_')}_{first.name}"
         )
         out = [f"\n{_RULE}\n// {key}: one function per layer, then the dispatch function.\n"]
+        if first.owner is not None and self.file.class_named(first.owner) is None:
+            # A class of an included header, or a namespace: only the C++ compiler can tell.
+            line, col = first.at.line, first.at.col
+            out.append(
+                f"{self.line(line - 1)}\nstatic_assert(\n{' ' * (col - 1)}"
+                f"::std::is_member_function_pointer_v<{signature}>, "
+                f"{_quote(f'cannot layer {key}: not a non-static member function of a class')});\n"
+                f"{_RESET}\n"
+            )
         out.append("namespace {\n\n")
         entries: list[tuple[str, str]] = []
         base_entry = "nullptr"

@@ -184,6 +184,7 @@ class CppClass:
     methods: frozenset[str]  # member functions it declares
     # The signature (shape, text, line) of each member function declared once.
     declarations: dict[str, tuple[tuple[object, ...], str, int]] = field(default_factory=dict)
+    static_methods: frozenset[str] = frozenset()  # declared `static`: a layer cannot refine them
 
 
 @dataclass
@@ -191,6 +192,10 @@ class CppLayerFile(LayerFile):
     classes: list[CppClass] = field(default_factory=list)
     header_functions: frozenset[str] = frozenset()  # functions the header part declares
     header_end: int = 0  # character offset where the declarations start
+    namespaces: frozenset[str] = frozenset()  # namespaces the header part opens (ns, ns::inner)
+
+    def is_namespace(self, owner: str) -> bool:
+        return any(ns == owner or ns.endswith("::" + owner) for ns in self.namespaces)
 
     def class_named(self, owner: str) -> CppClass | None:
         for cls in self.classes:
@@ -279,6 +284,23 @@ class _Parser:
                 continue
             seen.add(function.key)
             cls = result.class_named(function.owner)
+            if cls is None and result.is_namespace(function.owner):
+                self.sink.error(
+                    f"cannot layer {function.key}: {function.owner} is a namespace, and a "
+                    "layered free function lives at global scope (define it there, or make "
+                    "it a method of a class)",
+                    function.at.line,
+                    function.at.col,
+                )
+                continue
+            if cls is not None and function.name in cls.static_methods:
+                self.sink.error(
+                    f"cannot layer {function.key}: class {function.owner} declares it static "
+                    "(only non-static member functions and free functions can be layered)",
+                    function.at.line,
+                    function.at.col,
+                )
+                continue
             declared = cls.declarations.get(function.name) if cls is not None else None
             if declared is None or declared[0] == function.signature.shape:
                 continue
@@ -390,6 +412,7 @@ class _Parser:
         tree = self.text.parse(0, result.header_end)
         names: set[str] = set()
         functions: set[str] = set()
+        namespaces: set[str] = set()
         opaque = False
         pending: list[tuple[tree_sitter.Node, str]] = [(tree.root_node, "")]
         while pending:
@@ -403,6 +426,8 @@ class _Parser:
                     body = child.child_by_field_name("body")
                     if body is not None:
                         nested = f"{scope}{self.text.text(name)}::" if name is not None else scope
+                        if nested != scope:
+                            namespaces.add(nested.removesuffix("::"))
                         pending.append((body, nested))
                 elif kind in (
                     "preproc_if",
@@ -443,6 +468,7 @@ class _Parser:
         result.header_names = frozenset(names)
         result.header_functions = frozenset(functions)
         result.header_opaque = opaque
+        result.namespaces = frozenset(namespaces)
 
     def _class(
         self, node: tree_sitter.Node, scope: str, names: set[str], result: CppLayerFile
@@ -457,6 +483,7 @@ class _Parser:
         if body is None or body.children[-1].type != "}" or body.children[-1].is_missing:
             return
         methods: dict[str, list[tuple[tuple[object, ...], str, int]]] = {}
+        static_methods: set[str] = set()
         has_macro = False
         for member in body.named_children:
             if "CONTEXTROS_LAYERED_CLASS" in [self.text.text(leaf) for leaf in leaves(member)]:
@@ -473,6 +500,11 @@ class _Parser:
             text = f"{shape[0]} {method}({', '.join(types)})" + (f" {shape[2]}" if shape[2] else "")
             line = self.text.position(self.text.span(member)[0])[0]
             methods.setdefault(method, []).append((shape, text, line))
+            if any(
+                child.type == "storage_class_specifier" and self.text.text(child) == "static"
+                for child in member.children
+            ):
+                static_methods.add(method)
         close = self.text.char(body.children[-1].start_byte)
         result.classes.append(
             CppClass(
@@ -481,6 +513,7 @@ class _Parser:
                 has_macro,
                 frozenset(methods),
                 {m: d[0] for m, d in methods.items() if len(d) == 1},
+                frozenset(static_methods),
             )
         )
 
