@@ -250,20 +250,25 @@ class Receivers:
             classes = [type(target)]
         self._rebuild()
         if new:
-            self._mark(classes)
+            self._mark(classes)  # reinstalls every function on the per-receiver path
+        else:
+            self._reinstall()
 
     def _object_gone(self, key: int) -> None:
         with self.runtime.lock:
             self._object_steps.pop(key, None)
             self._object_types.pop(key, None)
-            self.objects.pop(key, None)  # before the id can be reused
+            # From the table the functions read (always the current one: every rebuild
+            # is reinstalled), before the id can be reused by a new object.
+            self.objects.pop(key, None)
             if not self._class_steps and not self._object_steps:
                 self._unmark()
 
     def _rebuild(self) -> None:
         """New tables, never cleared ones: a call racing this change can only store what
         it computed into the old tables (as with `_Heads`); the functions are reinstalled
-        with the new ones right after (by the switch, or by `_mark`)."""
+        with the new ones right after (by the switch, `_mark` or `_reinstall`), so the
+        tables the functions read are always `objects` and `classes`."""
         active = self.runtime.active
         objects = {
             key: _Receiver(self.class_steps(self._object_types[key]) + steps, active)
@@ -302,6 +307,11 @@ class Receivers:
                         continue
                     owner.receiver_kind = "class" if isinstance(value, classmethod) else "object"
                     self._functions.add(owner)
+        for function in self._functions:
+            self.runtime.recompose(function)
+
+    def _reinstall(self) -> None:
+        """Point every function on the per-receiver path at the current tables."""
         for function in self._functions:
             self.runtime.recompose(function)
 
