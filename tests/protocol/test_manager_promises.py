@@ -235,6 +235,20 @@ def test_a_new_state_is_repeated_on_the_heartbeat_shortly_after() -> None:
     assert len(beats) >= 3, "and every heartbeat period after that"
 
 
+def test_no_repeat_once_every_node_has_the_state() -> None:
+    manager = started(("/a",))
+    manager.tick(1.3)
+    (state,) = states(command(manager, 1, 1.31, activate=("Night",)))
+    manager.receive_status(report("/a", state.epoch, ("Night",)), 1.33)
+    beats = [
+        round(now, 2)
+        for now in (1.36, 1.41, 1.46, 1.51, 1.56, 1.61)
+        for a in manager.tick(now)
+        if isinstance(a, PublishHeartbeat)
+    ]
+    assert beats == [1.56], "only the regular heartbeat, 0.25 s after the last one"
+
+
 def test_a_manager_without_memory_numbers_its_first_state_well_above_what_it_heard() -> None:
     # Its predecessor may have published epochs 11, 12... that no participant reported
     # during recovery (lost, or the node was cut off): never issue those numbers again.

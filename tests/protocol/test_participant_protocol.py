@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 from contextros.protocol import (
     ApplyState,
     LayerDeclaration,
@@ -74,6 +76,25 @@ def test_heartbeat_period_and_repeats_of_a_new_report() -> None:
     assert len(p.tick(0.41)) == 1, "then the heartbeat"
     (leaving,) = p.leave(0.3)
     assert isinstance(leaving, PublishStatus) and leaving.report.leaving
+
+
+def test_reports_are_repeated_only_while_the_link_shows_loss() -> None:
+    p = participant()
+    p.announce(0.0)
+    for beat in range(1, 5):  # the manager's heartbeat, on time: a clean link
+        p.receive_state(LayerState(1, ()), now=beat * 0.25)
+        p.tick(beat * 0.25)
+    p.applied(LayerState(2, ("Night",)), now=1.0)
+    assert p.next_repeat is None, "a clean link: no repeat, the manager is not loaded"
+    p.receive_state(LayerState(2, ("Night",)), now=1.5)  # 0.5 s after the last: one lost
+    (ack,) = p.applied(LayerState(3, ()), now=1.6)
+    assert p.next_repeat == pytest.approx(1.65) and ack.report.applied_epoch == 3
+    assert [a.report.applied_epoch for a in p.tick(1.65)] == [3], "repeated: loss was seen"
+    assert len(p.tick(1.75)) == 1 and p.next_repeat is None
+    for beat in range(1, 130):  # 32 s of heartbeats on time: the loss is forgotten
+        p.receive_state(LayerState(3, ()), now=1.6 + beat * 0.25)
+    p.applied(LayerState(4, ("Night",)), now=34.0)
+    assert p.next_repeat is None
 
 
 def test_an_open_critical_section_is_reported_even_with_nothing_deferred() -> None:

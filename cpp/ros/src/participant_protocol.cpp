@@ -192,7 +192,7 @@ ParticipantActions ParticipantProtocol::announce(Clock::time_point now) {
   if (!manager_heard_) {
     manager_heard_ = now;  // the manager-lost clock starts with the node
   }
-  return {send(now, true)};
+  return {send(now, Repeat::always)};
 }
 
 ParticipantActions ParticipantProtocol::receive_state(const LayerState& state,
@@ -235,7 +235,7 @@ ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& propo
   vote_manager_id_ = proposal.manager_id;
   vote_yes_ = reasons.empty();
   vote_reason_ = printable(std::move(reason));
-  actions.emplace_back(send(now, true));
+  actions.emplace_back(send(now, Repeat::if_lossy));
   return actions;
 }
 
@@ -246,12 +246,12 @@ ParticipantActions ParticipantProtocol::applied(const LayerState& state, Clock::
   applied_epoch_ = state.epoch;
   applied_manager_id_ = state.manager_id;
   active_ = state.active;
-  return {send(now, true)};
+  return {send(now, Repeat::if_lossy)};
 }
 
 ParticipantActions ParticipantProtocol::deferred(const LayerState& state, Clock::time_point now) {
   pending_epoch_ = std::max(pending_epoch_, state.epoch);
-  return {send(now, true)};
+  return {send(now, Repeat::if_lossy)};
 }
 
 ParticipantActions ParticipantProtocol::failed(const LayerState& state, std::string_view error,
@@ -261,7 +261,7 @@ ParticipantActions ParticipantProtocol::failed(const LayerState& state, std::str
   }
   failed_epoch_ = std::max(failed_epoch_, state.epoch);
   error_ = printable("epoch " + std::to_string(state.epoch) + ": " + std::string(error));
-  return {send(now, true)};
+  return {send(now, Repeat::if_lossy)};
 }
 
 ParticipantActions ParticipantProtocol::host(std::vector<std::string> hosted,
@@ -269,7 +269,7 @@ ParticipantActions ParticipantProtocol::host(std::vector<std::string> hosted,
                                              Clock::time_point now) {
   hosted_ = std::move(hosted);
   layers_ = std::move(layers);
-  return {send(now, true)};
+  return {send(now, Repeat::if_lossy)};
 }
 
 ParticipantActions ParticipantProtocol::tick(Clock::time_point now) {
@@ -280,6 +280,7 @@ ParticipantActions ParticipantProtocol::tick(Clock::time_point now) {
   const Clock::duration silent = now - *manager_heard_;
   if (!manager_lost_ && silent > manager_timeout_) {
     manager_lost_ = true;
+    loss_seen_ = now;
     actions.emplace_back(ManagerLost{silent});
   }
   const bool due_repeat = !repeat_at_.empty() && now >= repeat_at_.front();
@@ -317,7 +318,11 @@ ParticipantActions ParticipantProtocol::heard_manager(const std::string& manager
     return {};
   }
   ParticipantActions actions;
+  if (last_message_ && *now - *last_message_ > heartbeat_period_ * 8 / 5) {
+    loss_seen_ = now;
+  }
   manager_heard_ = now;
+  last_message_ = now;
   const bool new_manager = !manager_id.empty() && manager_id != manager_id_;
   if (!manager_id.empty()) {
     manager_id_ = manager_id;
@@ -329,14 +334,15 @@ ParticipantActions ParticipantProtocol::heard_manager(const std::string& manager
   if (new_manager || !actions.empty()) {
     // A (re)started or regained manager learns about this node at once, not at the next
     // heartbeat: its recovery and our rejoining are faster.
-    actions.emplace_back(send(*now, true));
+    actions.emplace_back(send(*now, Repeat::always));
   }
   return actions;
 }
 
-PublishStatus ParticipantProtocol::send(Clock::time_point now, bool repeat) {
+PublishStatus ParticipantProtocol::send(Clock::time_point now, Repeat repeat) {
   last_sent_ = now;
-  if (repeat) {
+  const bool lossy = loss_seen_ && now - *loss_seen_ < loss_memory;
+  if (repeat == Repeat::always || (repeat == Repeat::if_lossy && lossy)) {
     repeat_at_.clear();
     for (Clock::duration delay : repeats_) {
       repeat_at_.push_back(now + delay);

@@ -90,6 +90,26 @@ TEST(ParticipantProtocol, AnOlderDeferredSwitchFailingAfterANewerAppliedIsMoot) 
   EXPECT_EQ(p.report().failed_epoch, 0u);
 }
 
+TEST(ParticipantProtocol, ReportsAreRepeatedOnlyWhileTheLinkShowsLoss) {
+  ParticipantProtocol p = participant();
+  p.announce(t0);
+  for (int beat = 1; beat < 5; ++beat) {  // the manager's heartbeat, on time: a clean link
+    p.receive_state(state(1), t0 + beat * 250ms);
+    p.tick(t0 + beat * 250ms);
+  }
+  p.applied(state(2, {"Night"}), t0 + 1000ms);
+  EXPECT_TRUE(p.tick(t0 + 1050ms).empty()) << "a clean link: no repeat, the manager is not loaded";
+  p.receive_state(state(2, {"Night"}), t0 + 1500ms);  // 0.5 s after the last: one lost
+  EXPECT_EQ(only_report(p.applied(state(3), t0 + 1600ms)).applied_epoch, 3u);
+  EXPECT_EQ(only_report(p.tick(t0 + 1650ms)).applied_epoch, 3u) << "repeated: loss was seen";
+  EXPECT_EQ(p.tick(t0 + 1750ms).size(), 1u);
+  for (int beat = 1; beat < 130; ++beat) {  // 32 s of heartbeats on time: the loss is forgotten
+    p.receive_state(state(3), t0 + 1600ms + beat * 250ms);
+  }
+  p.applied(state(4, {"Night"}), t0 + 34s);
+  EXPECT_TRUE(p.tick(t0 + 34050ms).empty());
+}
+
 TEST(ParticipantProtocol, HeartbeatPeriodAndRepeatsOfANewReport) {
   ParticipantProtocol p = participant();
   EXPECT_EQ(p.announce(t0).size(), 1u);

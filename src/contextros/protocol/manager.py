@@ -826,16 +826,22 @@ class ManagerProtocol:
         return PublishState(self._state)
 
     def _heartbeat(self, now: float) -> list[ManagerAction]:
-        due = now >= self._next_beat or (self._repeats and now >= self._repeats[0])
-        if not due:
+        beat_due = now >= self._next_beat
+        repeat_due = bool(self._repeats) and now >= self._repeats[0]
+        if not (beat_due or repeat_due):
             return []
         self._repeats = [t for t in self._repeats if t > now]
+        if not beat_due and not self._someone_lags():
+            return []  # every node has the state: a repeat would only load them
         self._next_beat = now + self.settings.heartbeat_period
         if self.recovering:
             beat = LayerState(epoch=0, reason="recovering", manager_id=self.settings.manager_id)
         else:
             beat = self._state
         return [PublishHeartbeat(beat)]
+
+    def _someone_lags(self) -> bool:
+        return any(r.report.applied_epoch < self._state.epoch for r in self._participants.values())
 
     # -- acknowledgements -------------------------------------------------------------------
 

@@ -93,6 +93,10 @@ inline constexpr std::chrono::milliseconds default_manager_timeout{3000};
 inline constexpr std::chrono::milliseconds leave_repeat_after{50};
 inline const std::vector<Clock::duration> default_repeats{std::chrono::milliseconds(50),
                                                           std::chrono::milliseconds(150)};
+// Reports are repeated shortly after a change only while the link shows loss: this long
+// after the manager was last heard late (more than 1.6 heartbeat periods after the
+// message before). On a clean link the repeats only load the manager.
+inline constexpr std::chrono::seconds loss_memory{30};
 // Epochs beyond 2**48 are never issued by an honest manager (docs/protocol.md).
 inline constexpr std::uint64_t max_epoch = std::uint64_t{1} << 48;
 
@@ -152,7 +156,9 @@ class ParticipantProtocol {
   Clock::time_point next_tick() const;
 
  private:
-  PublishStatus send(Clock::time_point now, bool repeat = false);
+  // Whether a report is repeated shortly after: never, if the link shows loss, always.
+  enum class Repeat { no, if_lossy, always };
+  PublishStatus send(Clock::time_point now, Repeat repeat = Repeat::no);
   ParticipantActions heard_manager(const std::string& manager_id,
                                    std::optional<Clock::time_point> now);
 
@@ -165,6 +171,8 @@ class ParticipantProtocol {
   std::vector<Clock::duration> repeats_;
   std::vector<Clock::time_point> repeat_at_;
   std::optional<Clock::time_point> manager_heard_;
+  std::optional<Clock::time_point> last_message_;  // the manager's last message, if any
+  std::optional<Clock::time_point> loss_seen_;     // when it was last heard late
   bool manager_lost_ = false;
   std::string manager_id_;
   std::uint64_t applied_epoch_ = 0;
