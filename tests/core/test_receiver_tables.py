@@ -73,3 +73,47 @@ def test_a_gone_object_leaves_the_installed_table_and_its_id_carries_no_layers()
             break
         del fresh
     assert keep.speed() == 10
+
+
+def test_a_partial_added_or_removed_later_is_followed_by_a_receiver_with_layers() -> None:
+    class Robot:
+        @layered
+        def speed(self) -> int:
+            return 1
+
+    r = Robot()
+    activate_for(r, A)
+    assert r.speed() == 1  # composes and caches r's chain: the base only
+
+    @Robot.speed.partial(A)
+    def speed(self: Robot) -> int:
+        return proceed(self) * 10
+
+    assert r.speed() == 10
+    Robot.speed.remove_partial(A)  # type: ignore[attr-defined]
+    assert r.speed() == 1
+
+
+def test_remove_layer_rewires_calls_on_a_receiver_with_that_layer() -> None:
+    from contextros import remove_layer
+
+    Doomed = Layer("TablesDoomed")
+
+    class Robot:
+        @layered
+        def speed(self) -> int:
+            return 1
+
+        @speed.partial(Doomed)
+        def speed(self) -> int:
+            return proceed(self) * 10
+
+    r, whole = Robot(), Robot()
+    activate_for(r, Doomed)
+    activate_for(Robot, Doomed)
+    assert (r.speed(), whole.speed(), Robot().speed()) == (10, 10, 10)
+    assert remove_layer(Doomed) == (
+        test_remove_layer_rewires_calls_on_a_receiver_with_that_layer.__qualname__
+        + ".<locals>.Robot.speed",
+    )
+    assert (r.speed(), whole.speed(), Robot().speed()) == (1, 1, 1)

@@ -154,7 +154,8 @@ def remove_layer(layer: LayerLike) -> tuple[str, ...]:
     """Remove a layer at run time: deactivate it if it is decisively active (validated:
     a RelationError changes nothing), drop its partial methods from every layered
     function (each is rewired at once) and forget its definition. Returns the qualified
-    names of the functions it refined. Scopes still naming it see a transparent layer."""
+    names of the functions it refined. Scopes and receivers (`activate_for`) still naming it
+    see a transparent layer."""
     return RUNTIME.remove_layer(resolve(layer))
 
 

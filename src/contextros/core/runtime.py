@@ -371,12 +371,15 @@ class Runtime:
             function.install(function.global_head)
 
     def rewire(self, function: LayeredFunction) -> None:
-        """`function`'s partials changed: recompose it, and give every live scope fresh
-        heads (theirs were composed from the old partials)."""
+        """`function`'s partials changed: recompose it, and give every live scope and
+        every receiver (object or class with layers of its own) fresh heads (theirs were
+        composed from the old partials), reinstalling the per-receiver functions."""
         with self.lock:
             self.recompose(function)
             for scope in list(self._scopes):
                 scope.refresh(self.active)
+            self.receivers.refresh(self.active)
+            self.receivers._reinstall()
 
     def remove_layer(self, layer: Layer) -> tuple[str, ...]:
         """Deactivate `layer` (if decisively active), drop its partials from every layered
