@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import inspect
-from collections.abc import Callable
-from types import FunctionType
+from collections.abc import Callable, Mapping
+from types import FunctionType, MappingProxyType
 from typing import Any, TypeVar, overload
 
 from contextros.core.configuration import Configuration
@@ -27,6 +27,23 @@ from contextros.errors import LayerDefinitionError, NoImplementationError, Proce
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+class _Partials:
+    """One published set of partials: each function with its `proceed` analysis, and the
+    chains composed from exactly these (by the ordered names of the layers that refine).
+
+    Never changed once published (only `chains`, a cache of this set's own chains, grows):
+    adding, replacing or removing a partial publishes a new one, so a call composing its
+    chain without the runtime's lock reads one consistent set, and a chain composed from
+    a replaced partial can only be cached in the set it was composed from."""
+
+    __slots__ = ("chains", "functions", "uses")
+
+    def __init__(self, functions: dict[str, FunctionType], uses: dict[str, ProceedUse]) -> None:
+        self.functions = functions
+        self.uses = uses
+        self.chains: dict[tuple[str, ...], Callable[..., Any]] = {}
+
+
 class LayeredFunction:
     """The composition state behind one layered function or method.
 
@@ -44,9 +61,7 @@ class LayeredFunction:
         self.base = base
         if base is not None:
             mark_base(base)
-        self.partials: dict[str, FunctionType] = {}
-        self._uses: dict[str, ProceedUse] = {}
-        self._chains: dict[tuple[str, ...], Callable[..., Any]] = {}
+        self._published = _Partials({}, {})
         self.stable = copy_function(stub)
         self._freevars = stub.__code__.co_freevars
         self._head_key = fresh_key("head")
@@ -117,6 +132,11 @@ class LayeredFunction:
 
     def __repr__(self) -> str:
         return f"<layered {self.qualname} partials={sorted(self.partials)}>"
+
+    @property
+    def partials(self) -> Mapping[str, FunctionType]:
+        """The partials by layer name (a read-only view of the published set)."""
+        return MappingProxyType(self._published.functions)
 
     # -- definition ----------------------------------------------------------------------
 
@@ -190,14 +210,17 @@ class LayeredFunction:
     def _set_partial(self, name: str, function: FunctionType | None) -> None:
         from contextros.core.runtime import RUNTIME
 
+        use = analyse(function) if function is not None else None  # before publishing
         with RUNTIME.lock:
-            if function is None:
-                del self.partials[name]
-                del self._uses[name]
+            current = self._published
+            functions, uses = dict(current.functions), dict(current.uses)
+            if function is None or use is None:
+                del functions[name]
+                del uses[name]
             else:
-                self.partials[name] = function
-                self._uses[name] = analyse(function)
-            self._chains.clear()
+                functions[name] = function
+                uses[name] = use
+            self._published = _Partials(functions, uses)  # one assignment: all or nothing
             RUNTIME.rewire(self)
 
     @property
@@ -212,24 +235,25 @@ class LayeredFunction:
     # -- composition ---------------------------------------------------------------------
 
     def head_for(self, configuration: Configuration) -> Callable[..., Any]:
-        """The first implementation to run under `configuration` (composed once, cached)."""
-        relevant = tuple(
-            layer.name for layer in reversed(configuration) if layer.name in self.partials
-        )
-        head = self._chains.get(relevant)
+        """The first implementation to run under `configuration` (composed once, cached).
+
+        Safe without the runtime's lock: it reads one published set of partials."""
+        published = self._published
+        functions = published.functions
+        relevant = tuple(layer.name for layer in reversed(configuration) if layer.name in functions)
+        head = published.chains.get(relevant)
         if head is None:
-            head = self._compose(relevant)
-            self._chains[relevant] = head
+            head = published.chains[relevant] = self._compose(published, relevant)
         return head
 
-    def _compose(self, relevant: tuple[str, ...]) -> Callable[..., Any]:
+    def _compose(self, published: _Partials, relevant: tuple[str, ...]) -> Callable[..., Any]:
         if not relevant:
             return self.base if self.base is not None else self._missing()
         following: Callable[..., Any] = (
             self.base if self.base is not None else self._exhausted(relevant[-1])
         )
         for name in reversed(relevant):
-            following = link(self.partials[name], self._uses[name], following)
+            following = link(published.functions[name], published.uses[name], following)
         return following
 
     def install(self, head: Callable[..., Any]) -> None:
