@@ -88,3 +88,85 @@ def test_errors_name_the_place_with_a_caret(line: str, at: str, message: str) ->
 def test_a_rule_is_one_line() -> None:
     _, errors = parse("rule R: LowBattery while a.b > 1\n    for 2 s\n")
     assert any("a rule is declared on one line" in e for e in errors)
+
+
+# -- string literals and nesting: located errors, never an exception ---------------------
+
+
+@pytest.mark.parametrize(
+    ("line", "at", "message"),
+    [
+        ('rule R: LowBattery while mode.data == "\\x"', "\\x", "invalid escape '\\x'"),
+        ('rule R: LowBattery while mode.data == "ok\\N{foo}"', "\\N", "unknown Unicode character"),
+        ("rule R: LowBattery while mode.data == 'a\\u12'", "\\u", "invalid escape '\\u12'"),
+        (
+            "rule R: LowBattery while " + "not " * 2000 + "mode.data",
+            "not " * 1900 + "mode",
+            "nests too deeply",
+        ),
+        (
+            "rule R: LowBattery while " + "(" * 2000 + "mode.data" + ")" * 2000,
+            "(" * 1900 + "mode",
+            "nests too deeply",
+        ),
+    ],
+)
+def test_bad_strings_and_deep_nesting_are_located_errors(line: str, at: str, message: str) -> None:
+    rules, errors = parse(line + "\n")
+    assert rules == []
+    (error,) = errors
+    col = line.index(at) + 1
+    head, _, caret = error.splitlines()
+    assert head.startswith(f"robot.layers:7:{col}: error:"), head
+    assert message in head
+    assert len(caret) - 4 == col
+
+
+def test_strings_read_as_python_string_literals() -> None:
+    (rule,), errors = parse(
+        'rule M: deactivate LowBattery when mode.data == "é\\u00e9\\t\\\\\\N{BULLET}"\n'
+    )
+    assert errors == []
+    assert rule.condition.right.value == "éé\t\\\u2022"
+
+
+def test_nesting_up_to_the_limit_is_read() -> None:
+    (rule,), errors = parse(
+        "rule R: LowBattery while " + "not (" * 50 + "mode.data" + ")" * 50 + "\n"
+    )
+    assert errors == []
+    assert isinstance(rule.condition, Not)
+
+
+def test_an_unknown_escape_is_kept_with_a_warning() -> None:
+    line = 'rule M: deactivate LowBattery when mode.data == "a\\d"'
+    (rule,), found = parse(line + "\n")
+    assert rule.condition.right.value == "a\\d"
+    (warning,) = found
+    col = line.index("\\d") + 1
+    assert warning.startswith(f"robot.layers:7:{col}: warning: invalid escape")
+
+
+@pytest.mark.parametrize(
+    ("value", "expected"),
+    [('"é"', "é"), ("'a\\tb'", "a\tb"), ('"\\u00e9"', "é"), ("'it''s'", None)],
+)
+def test_parameter_strings_read_like_rule_strings(value: str, expected: str | None) -> None:
+    layer_file, diagnostics = parse_with_diagnostics(
+        HEADER + f"parameter LowBattery: /base mode = {value}\n", "robot.layers"
+    )
+    if expected is None:
+        assert layer_file.parameters == [] and diagnostics
+        return
+    assert [d.render() for d in diagnostics] == []
+    assert [p.value for p in layer_file.parameters] == [expected]
+
+
+@pytest.mark.parametrize(("value", "escape"), [('"\\x"', "\\x"), ('"a\\N{foo}"', "\\N")])
+def test_a_bad_parameter_string_is_a_located_error(value: str, escape: str) -> None:
+    line = f"parameter LowBattery: /base mode = {value}"
+    layer_file, diagnostics = parse_with_diagnostics(HEADER + line + "\n", "robot.layers")
+    assert layer_file.parameters == []
+    (error,) = [d.render() for d in diagnostics]
+    col = line.index(escape) + 1
+    assert error.startswith(f"robot.layers:7:{col}: error: invalid escape")

@@ -21,6 +21,7 @@ import re
 from dataclasses import dataclass
 
 from contextros.language.diagnostics import DiagnosticSink
+from contextros.language.literals import string_literal
 from contextros.language.syntax import Position, Ref
 
 LIFECYCLE_STATES = ("active", "inactive")
@@ -60,11 +61,12 @@ class LifecycleBinding:
     path: str = "<layers>"
 
 
-def _value(text: str) -> ParameterValue:
+def _value(text: str, line: int, col: int, sink: DiagnosticSink) -> ParameterValue | None:
+    """The value written `text` at `line`:`col`; None (reported) for a malformed string."""
     if text in ("true", "false"):
         return text == "true"
     if text[0] in "\"'":
-        return bytes(text[1:-1], "utf-8").decode("unicode_escape")
+        return string_literal(text, line, col, sink)
     if re.fullmatch(r"[-+]?\d+", text):
         return int(text)
     return float(text)
@@ -83,7 +85,9 @@ def parse_parameter(
             col + len(text) - len(text.lstrip(" \t")),
         )
         return None
-    value = _value(match.group("value"))
+    value = _value(match.group("value"), line, col + match.start("value"), sink)
+    if value is None:
+        return None
     if isinstance(value, float) and not math.isfinite(value):
         sink.error("the value must be a finite number", line, col + match.start("value"))
         return None

@@ -33,9 +33,12 @@ import re
 from dataclasses import dataclass, field
 
 from contextros.language.diagnostics import DiagnosticSink
+from contextros.language.literals import string_literal
 from contextros.language.syntax import Position, Ref
 
 COMPARISONS = ("<=", ">=", "==", "!=", "<", ">")
+# How deep `not` and parentheses may nest in a condition (the parser recurses per level).
+MAX_NESTING = 100
 _KEYWORDS = frozenset(
     {"while", "when", "for", "else", "hysteresis", "and", "or", "not", "activate", "deactivate"}
 )
@@ -145,6 +148,7 @@ class _RuleParser:
         self.end_col = col + len(text.rstrip())
         self.ok = self._tokenize(text, col)
         self.i = 0
+        self.depth = 0
         self.fields: list[FieldRef] = []
 
     def _tokenize(self, text: str, col: int) -> bool:
@@ -281,18 +285,30 @@ class _RuleParser:
 
     def negation(self) -> Condition:
         start = self.at()
-        if self.word("not") is not None:
-            return Not(self.negation(), start)
         token = self.peek()
-        if token is not None and token.text == "(":
-            self.i += 1
+        if token is None or (token.text != "(" and (token.kind, token.text) != ("name", "not")):
+            return self.comparison()
+        if self.depth >= MAX_NESTING:
+            self.sink.error(
+                f"the condition nests too deeply: more than {MAX_NESTING} levels of 'not' and "
+                "parentheses",
+                start.line,
+                start.col,
+            )
+            raise _Stop
+        self.depth += 1
+        try:
+            if self.word("not") is not None:
+                return Not(self.negation(), start)
+            self.i += 1  # "("
             inner = self.condition()
             token = self.peek()
             if token is None or token.text != ")":
                 self.fail("')'")
             self.i += 1
             return inner
-        return self.comparison()
+        finally:
+            self.depth -= 1
 
     def comparison(self) -> Comparison:
         start = self.at()
@@ -339,8 +355,10 @@ class _RuleParser:
             return Literal(value, at)
         if token.kind == "string":
             self.i += 1
-            body = token.text[1:-1]
-            return Literal(bytes(body, "utf-8").decode("unicode_escape"), at)
+            text = string_literal(token.text, at.line, at.col, self.sink)
+            if text is None:
+                raise _Stop
+            return Literal(text, at)
         if token.kind == "name" and token.text in ("true", "false"):
             self.i += 1
             return Literal(token.text == "true", at)
