@@ -117,7 +117,10 @@ def activate_for(target: object, *layers: LayerLike) -> Configuration:
     Composition order for a call on an object: decisive layers, then class-wide layers
     of its classes from the most general base to its own class, then the object's own,
     then the caller's `with activated/deactivated` scope; within each, the later step is
-    outermost. Relations are checked against the result (RelationError: no change).
+    outermost. Relations are checked against the result for every receiver the change
+    affects (for a class: its subclasses and their objects with layers of their own);
+    RelationError naming the receiver: no change. A later decisive switch is never refused
+    for a receiver: its levels that conflict with it are suspended (docs/core.md).
     Only layered methods, classmethods and property getters of the classes concerned take
     the per-receiver path; free functions and staticmethods have no receiver.
     """

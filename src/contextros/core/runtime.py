@@ -22,7 +22,7 @@ from contextros.core import configuration as rules
 from contextros.core.configuration import Configuration
 from contextros.core.layer import Layer
 from contextros.core.layered import LayeredFunction
-from contextros.errors import HookError, LayerDefinitionError, LayerError
+from contextros.errors import HookError, LayerDefinitionError, LayerError, RelationError
 
 log = logging.getLogger("contextros")
 
@@ -127,17 +127,38 @@ class _Scope:
 
 
 Steps = tuple[tuple[bool, Layer], ...]
+# The key of an object's own level among its levels (a class-wide level's key is its class).
+_OWN = "own layers"
+Levels = list[tuple[object, Steps]]
+
+
+def _configure(
+    active: Configuration, levels: Levels
+) -> tuple[Configuration, dict[object, RelationError]]:
+    """Replay `levels` (class-wide ones from the most general class, then the object's
+    own) on the decisive configuration `active`. A level whose result breaks a relation
+    is suspended (skipped: the decisive configuration wins) and reported by key."""
+    configuration = active
+    suspended: dict[object, RelationError] = {}
+    for key, steps in levels:
+        candidate = rules.replay(configuration, steps)
+        try:
+            rules.validate(candidate)
+        except RelationError as error:
+            suspended[key] = error
+        else:
+            configuration = candidate
+    return configuration, suspended
 
 
 class _Receiver:
-    """The layers of one receiver (a class, class-wide; or an object), as steps replayed
-    on the decisive configuration, and the heads composed for that."""
+    """The configuration of one receiver (a class, class-wide; or an object): its levels
+    replayed on the decisive configuration, and the heads composed for that."""
 
-    __slots__ = ("heads", "steps")
+    __slots__ = ("heads",)
 
-    def __init__(self, steps: Steps, active: Configuration) -> None:
-        self.steps = steps
-        self.heads = _Heads(rules.replay(active, steps))
+    def __init__(self, configuration: Configuration) -> None:
+        self.heads = _Heads(configuration)
 
     def head(self, function: LayeredFunction, scope: _Scope | None) -> Callable[..., Any]:
         heads = self.heads  # one snapshot, as in _Scope.head
@@ -161,8 +182,9 @@ class _ByClass(dict):  # type: ignore[type-arg]
         self._receivers = receivers
 
     def __missing__(self, cls: type) -> _Receiver | None:
-        steps = self._receivers.class_steps(cls)
-        found = _Receiver(steps, self._receivers.runtime.active) if steps else None
+        receivers = self._receivers
+        levels = receivers.class_levels(cls)
+        found = _Receiver(_configure(receivers.runtime.active, levels)[0]) if levels else None
         self[cls] = found
         return found
 
@@ -175,6 +197,11 @@ class Receivers:
     then the object's own steps; then the caller's scoped steps (`with activated`). A
     layered function defined in a class with such layers (or in one of its bases or
     subclasses) takes a per-receiver path; every other function keeps its direct path.
+
+    Each class's steps and an object's own steps form a level. A change through
+    `activate_for`/`deactivate_for`/`reset_for` is validated for every receiver it
+    affects; a decisive switch is never refused for a receiver: a level that breaks a
+    relation with the new decisive configuration is suspended (skipped) while it does.
     """
 
     def __init__(self, runtime: Runtime) -> None:
@@ -182,17 +209,33 @@ class Receivers:
         self._class_steps: dict[type, Steps] = {}
         self._object_steps: dict[int, Steps] = {}
         self._object_types: dict[int, type] = {}
+        self._object_refs: dict[int, weakref.ref[Any]] = {}
         self.objects: dict[int, _Receiver] = {}
         self.classes = _ByClass(self)
         self._functions: set[LayeredFunction] = set()
+        # (receiver, level) pairs suspended after the last decisive switch, for the log.
+        self._suspended: set[tuple[object, object]] = set()
 
     # -- queries ---------------------------------------------------------------------------
 
-    def class_steps(self, cls: type) -> Steps:
-        steps: Steps = ()
+    def class_levels(self, cls: type, override: tuple[type, Steps] | None = None) -> Levels:
+        """The class-wide levels of `cls`'s MRO, most general first (`override`: one
+        class's steps as they would be after a change)."""
+        levels: Levels = []
         for klass in reversed(getattr(cls, "__mro__", ())):
-            steps += self._class_steps.get(klass, ())
-        return steps
+            if override is not None and klass is override[0]:
+                steps = override[1]
+            else:
+                steps = self._class_steps.get(klass, ())
+            if steps:
+                levels.append((klass, steps))
+        return levels
+
+    def _object_levels(self, key: int, override: tuple[type, Steps] | None = None) -> Levels:
+        return [
+            *self.class_levels(self._object_types[key], override),
+            (_OWN, self._object_steps[key]),
+        ]
 
     def of(self, receiver: object) -> _Receiver | None:
         found = self.objects.get(id(receiver))
@@ -209,8 +252,8 @@ class Receivers:
 
     def change(self, target: object, steps: Steps, forget: tuple[Layer, ...] | None) -> None:
         """Add `steps` to `target`'s own (a later step for a layer replaces an earlier one),
-        or with `forget` drop its steps for those layers (all when empty). Validated:
-        a RelationError leaves everything unchanged."""
+        or with `forget` drop its steps for those layers (all when empty). Validated for
+        every receiver the change affects: a RelationError leaves everything unchanged."""
         current = self.own_steps(target)
         if forget is not None:
             dropped = set(forget)
@@ -218,20 +261,24 @@ class Receivers:
         else:
             named = {layer for _, layer in steps}
             new = tuple(step for step in current if step[1] not in named) + steps
-        runtime = self.runtime
         if isinstance(target, type):
-            merged = self.class_steps(target)
-            merged = merged[: len(merged) - len(current)] + new if current else merged + new
-            rules.validate(rules.replay(runtime.active, merged))
+            self._check_class_change(target, new, adding=forget is None)
             if new:
                 self._class_steps[target] = new
             else:
                 self._class_steps.pop(target, None)
             classes = [target, *_subclasses(target)]
         else:
-            merged = self.class_steps(type(target)) + new
-            rules.validate(rules.replay(runtime.active, merged))
             key = id(target)
+            cls = type(target)
+            levels = self.class_levels(cls)
+            self._check(
+                target,
+                _OWN,
+                [*levels, (_OWN, current)] if current else levels,
+                [*levels, (_OWN, new)] if new else levels,
+                adding=forget is None,
+            )
             if new:
                 if key not in self._object_steps:
                     try:
@@ -239,25 +286,68 @@ class Receivers:
                     except TypeError:
                         raise LayerDefinitionError(
                             f"per-object activation needs an object that supports weak "
-                            f"references; {type(target).__name__} has __slots__ without "
+                            f"references; {cls.__name__} has __slots__ without "
                             "'__weakref__' (or is a built-in type): activate for its class"
                         ) from None
+                    self._object_refs[key] = weakref.ref(target)
                 self._object_steps[key] = new
-                self._object_types[key] = type(target)
+                self._object_types[key] = cls
             else:
-                self._object_steps.pop(key, None)
-                self._object_types.pop(key, None)
-            classes = [type(target)]
+                self._forget_object(key)
+            classes = [cls]
         self._rebuild()
         if new:
             self._mark(classes)  # reinstalls every function on the per-receiver path
         else:
             self._reinstall()
 
+    def _check_class_change(self, target: type, new: Steps, *, adding: bool) -> None:
+        """Validate a class-wide change for the class, its subclasses and their objects
+        with layers of their own."""
+        override = (target, new)
+        affected = [target, *_subclasses(target)]
+        for cls in affected:
+            self._check(
+                cls, target, self.class_levels(cls), self.class_levels(cls, override), adding=adding
+            )
+        concerned = set(affected)
+        for key, cls in list(self._object_types.items()):
+            if cls in concerned:
+                self._check(
+                    self._object_refs[key](),
+                    target,
+                    self._object_levels(key),
+                    self._object_levels(key, override),
+                    adding=adding,
+                )
+
+    def _check(
+        self, receiver: object, changed: object, before: Levels, after: Levels, *, adding: bool
+    ) -> None:
+        """Refuse a change that suspends a level of `receiver` that was not suspended, or
+        that adds steps to a level (`changed`) that stays suspended."""
+        active = self.runtime.active
+        _, now = _configure(active, after)
+        if not now:
+            return
+        _, earlier = _configure(active, before)
+        for level, error in now.items():
+            if level not in earlier or (adding and level is changed):
+                raise RelationError(
+                    f"{error}, for {_describe(receiver)} (its class-wide and own layers on "
+                    "the decisive configuration); the change to "
+                    f"{_describe_level(changed, receiver)} was refused, nothing changed",
+                    error.layers,
+                )
+
+    def _forget_object(self, key: int) -> None:
+        self._object_steps.pop(key, None)
+        self._object_types.pop(key, None)
+        self._object_refs.pop(key, None)
+
     def _object_gone(self, key: int) -> None:
         with self.runtime.lock:
-            self._object_steps.pop(key, None)
-            self._object_types.pop(key, None)
+            self._forget_object(key)
             # From the table the functions read (always the current one: every rebuild
             # is reinstalled), before the id can be reused by a new object.
             self.objects.pop(key, None)
@@ -271,8 +361,8 @@ class Receivers:
         tables the functions read are always `objects` and `classes`."""
         active = self.runtime.active
         objects = {
-            key: _Receiver(self.class_steps(self._object_types[key]) + steps, active)
-            for key, steps in self._object_steps.items()
+            key: _Receiver(_configure(active, self._object_levels(key))[0])
+            for key in self._object_steps
         }
         self.objects = objects
         self.classes = _ByClass(self)
@@ -283,11 +373,38 @@ class Receivers:
         """After a decisive switch: every receiver's heads for the new configuration."""
         if self._functions:
             self._rebuild()
+            self._log_suspended(active)
+
+    def _log_suspended(self, active: Configuration) -> None:
+        """Log each level a decisive switch suspends (once, until it applies again): a
+        class's own level on the class (its subclasses and objects share it), an
+        object's own level on the object."""
+        suspended: set[tuple[object, object]] = set()
+        receivers: list[tuple[object, object, Levels]] = [
+            (cls, cls, self.class_levels(cls)) for cls in self._class_steps
+        ]
+        receivers += [(key, _OWN, self._object_levels(key)) for key in self._object_steps]
+        for receiver, own, levels in receivers:
+            error = _configure(active, levels)[1].get(own)
+            if error is None:
+                continue
+            suspended.add((receiver, own))
+            if (receiver, own) not in self._suspended:
+                shown = self._object_refs[receiver]() if own is _OWN else receiver  # type: ignore[index]
+                log.warning(
+                    "contextros: %s suspended while the decisive configuration breaks a "
+                    "relation with them: %s",
+                    _describe_level(own, shown),
+                    error,
+                )
+        self._suspended = suspended
 
     def forget_all(self) -> None:
         self._class_steps.clear()
         self._object_steps.clear()
         self._object_types.clear()
+        self._object_refs.clear()
+        self._suspended = set()
         self._rebuild()
 
     def _mark(self, classes: list[type]) -> None:
@@ -320,6 +437,24 @@ class Receivers:
         for function in functions:
             function.receiver_kind = ""
             self.runtime.recompose(function)
+
+
+def _describe(receiver: object) -> str:
+    if receiver is None:
+        return "a collected object"
+    if isinstance(receiver, type):
+        return f"class {receiver.__qualname__}"
+    try:
+        shown = repr(receiver)
+    except Exception:  # a receiver's own __repr__ may fail: name it by type and id
+        shown = f"<{type(receiver).__qualname__} object at {id(receiver):#x}>"
+    return f"object {shown}"
+
+
+def _describe_level(level: object, receiver: object) -> str:
+    if level is _OWN:
+        return f"the own layers of {_describe(receiver)}"
+    return f"the class-wide layers of {_describe(level)}"
 
 
 def _subclasses(cls: type) -> list[type]:
