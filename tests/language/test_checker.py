@@ -427,3 +427,55 @@ def test_proceed_in_a_method_without_the_instance() -> None:
         )
         == []
     )
+
+
+@pytest.mark.parametrize(
+    "name", ["_Layer", "_layered", "_layered_method", "proceed", "__layers__", "__layer_order__"]
+)
+def test_names_the_compiled_module_defines_are_reserved(name: str) -> None:
+    # A layer of that name, and a method whose dispatch function has it: both replace what
+    # the compiled module needs (the import then fails); located errors instead.
+    found = diagnostics(f"layer {name}:\n    def f(): ...\nbase:\n    def {name}(): ...\n")
+    assert [(sev, line, col) for sev, line, col, _ in found] == [
+        ("error", 1, 7),
+        ("error", 4, 9),
+    ], found
+    assert f"layer {name!r} would shadow {name!r}" in found[0][3]
+    assert f"the dispatch function {name!r} of {name} is already" in found[1][3]
+
+
+def test_a_layer_named_like_a_module_attribute_is_refused() -> None:
+    assert only("layer __name__:\n    def f(): ...\n") == (
+        "error",
+        1,
+        7,
+        "layer '__name__' would shadow '__name__', a name Python sets on every module",
+    )
+
+
+def test_hook_functions_are_claimed_names() -> None:
+    assert only("layer L:\n    on activate:\n        pass\n    def on_activate(): ...\n") == (
+        "error",
+        4,
+        9,
+        "the compiled name 'on_activate_L' of on_activate is already the 'on activate' hook "
+        "of layer 'L'; rename the method or the layer",
+    )
+    assert only("def on_deactivate_L(): ...\nlayer L:\n    on deactivate:\n        pass\n") == (
+        "error",
+        3,
+        5,
+        "the compiled name 'on_deactivate_L' of the 'on deactivate' hook of layer 'L' is "
+        "already a name defined in the header; rename the layer",
+    )
+
+
+def test_reserved_names_checked_clean_compile_and_run() -> None:
+    from contextros.language.compiler import compile_source
+
+    # Names near the reserved ones stay free, and what checks clean imports.
+    source = "layer Layer:\n    def layered(): return 1\nbase:\n    def layers(): return 2\n"
+    assert diagnostics(source) == []
+    namespace: dict[str, object] = {"__name__": "reserved_names_probe"}
+    exec(compile_source(source, "t.layers").code(), namespace)
+    assert namespace["__layers__"] == (namespace["Layer"],)

@@ -22,8 +22,32 @@ from contextros.language.diagnostics import (
 from contextros.language.flavours import parse_with_diagnostics
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Ref
 
-# Names the compiled module defines besides the generated functions and the layers.
+# Names the compiled module defines besides the generated functions and the layers
+# (compiler.py), each with what it is; a layer or a method of that name would replace it.
 RESERVED_NAMES = frozenset({"proceed"})
+PYTHON_RESERVED_NAMES = {
+    "proceed": "a name the compiled module imports",
+    "_Layer": "a name the compiled module imports",
+    "_layered": "a name the compiled module imports",
+    "_layered_method": "a name the compiled module imports",
+    "__layers__": "the compiled module's list of its layers",
+    "__layer_order__": "the compiled module's list of its 'after' orders",
+    # Set on every module by Python's import system.
+    **dict.fromkeys(
+        (
+            "__name__",
+            "__file__",
+            "__doc__",
+            "__builtins__",
+            "__spec__",
+            "__loader__",
+            "__package__",
+            "__cached__",
+            "__path__",
+        ),
+        "a name Python sets on every module",
+    ),
+}
 # Decorators that turn a function into something the core cannot layer.
 DESCRIPTORS = frozenset({"staticmethod", "classmethod", "property"})
 
@@ -358,8 +382,13 @@ class _Checker:
         """Names the compiled module defines must not collide with each other or the header."""
         header = self.file.header_names
         taken = dict.fromkeys(header, "a name defined in the header")
-        for name in RESERVED_NAMES:
-            taken.setdefault(name, "a name the compiled module imports")
+        reserved = (
+            PYTHON_RESERVED_NAMES
+            if self.file.language == "python"
+            else dict.fromkeys(RESERVED_NAMES, "a name the compiled module imports")
+        )
+        for name, what in reserved.items():
+            taken.setdefault(name, what)
         for layer in self.layers.values():
             if layer.name in taken:
                 self.sink.error(
@@ -368,6 +397,19 @@ class _Checker:
                     layer.at.col,
                 )
             taken[layer.name] = f"layer {layer.name!r}"
+            if self.file.language != "python":
+                continue
+            # Hooks compile to module-level functions (on_activate_<Layer>, ...).
+            for hook in layer.hooks:
+                claimant = f"the 'on {hook.event}' hook of layer {layer.name!r}"
+                owner = taken.setdefault(hook.generated_name, claimant)
+                if owner != claimant:
+                    self.sink.error(
+                        f"the compiled name {hook.generated_name!r} of the 'on {hook.event}' "
+                        f"hook of layer {layer.name!r} is already {owner}; rename the layer",
+                        hook.at.line,
+                        hook.at.col,
+                    )
         seen: set[tuple[str | None, str]] = set()
         for function in sorted(self.file.all_functions(), key=lambda f: (f.at.line, f.at.col)):
             if (function.layer, function.key) in seen:
