@@ -369,7 +369,15 @@ CriticalSection::~CriticalSection() {
     while (!runtime.deferred.empty() && runtime.critical_depth.load() == 0) {
       detail::Pending pending = std::move(runtime.deferred.front());
       runtime.deferred.pop_front();
-      settled.push_back({std::move(pending.on_settled), runtime.apply(pending.plan)});
+      SwitchOutcome outcome{SwitchStatus::failed, runtime.epoch, ""};
+      try {  // a destructor must not throw
+        outcome = runtime.apply(pending.plan);
+      } catch (const std::exception& error) {
+        outcome.error = error.what();
+      } catch (...) {
+        outcome.error = "the switch threw";
+      }
+      settled.push_back({std::move(pending.on_settled), std::move(outcome)});
     }
   }
   for (auto& item : settled) {

@@ -313,6 +313,8 @@ struct Participant::Impl {
           reason = veto(proposal);
         } catch (const std::exception& error) {  // a veto that fails says no
           reason = std::string("a veto failed: ") + error.what();
+        } catch (...) {
+          reason = "a veto failed";
         }
         if (!reason.empty()) reasons += (reasons.empty() ? "" : "; ") + reason;
       }
@@ -355,6 +357,8 @@ struct Participant::Impl {
           listener(lost);
         } catch (const std::exception& error) {  // a listener must not stop the node
           RCUTILS_LOG_ERROR_NAMED(logger, "a manager listener failed: %s", error.what());
+        } catch (...) {
+          RCUTILS_LOG_ERROR_NAMED(logger, "a manager listener failed");
         }
       }
     }
@@ -373,6 +377,8 @@ struct Participant::Impl {
           listener(state);
         } catch (const std::exception& error) {  // a listener must not stop the node
           RCUTILS_LOG_ERROR_NAMED(logger, "a state listener failed: %s", error.what());
+        } catch (...) {
+          RCUTILS_LOG_ERROR_NAMED(logger, "a state listener failed");
         }
       }
     }
@@ -380,47 +386,61 @@ struct Participant::Impl {
 
   void loop() {
     while (!stopping.load()) {
-      auto timeout = std::chrono::nanoseconds(0);
-      {
-        std::lock_guard<std::mutex> lock(mutex);
-        timeout = std::max(std::chrono::nanoseconds(0),
-                           std::chrono::duration_cast<std::chrono::nanoseconds>(
-                               protocol.next_tick() - Clock::now()));
+      try {
+        if (!turn()) break;
+      } catch (const std::exception& error) {  // nothing may end the thread but stopping
+        RCUTILS_LOG_ERROR_NAMED(logger, "participant: %s", error.what());
+      } catch (...) {
+        RCUTILS_LOG_ERROR_NAMED(logger, "participant: an unknown exception");
       }
-      rcl_wait_set_t* set = wait_set.get();
-      if (rcl_wait_set_clear(set) != RCL_RET_OK ||
-          rcl_wait_set_add_subscription(set, state_subscription.get(), nullptr) != RCL_RET_OK ||
-          rcl_wait_set_add_subscription(set, heartbeat_subscription.get(), nullptr) != RCL_RET_OK ||
-          rcl_wait_set_add_subscription(set, proposal_subscription.get(), nullptr) != RCL_RET_OK ||
-          rcl_wait_set_add_guard_condition(set, wake.get(), nullptr) != RCL_RET_OK) {
-        std::fprintf(stderr, "contextros: participant wait set: %s\n", rcl_get_error_string().str);
-        rcl_reset_error();
-        std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        continue;
-      }
-      const rcl_ret_t waited = rcl_wait(set, timeout.count());
-      if (waited != RCL_RET_OK && waited != RCL_RET_TIMEOUT) {
-        rcl_reset_error();  // the context is shutting down; the destructor stops us
-        std::this_thread::sleep_for(std::chrono::milliseconds(10));
-        continue;
-      }
-      if (stopping.load()) {
-        break;
-      }
-      if (set->subscriptions[0] != nullptr) {
-        take_states(state_subscription);
-      }
-      if (set->subscriptions[1] != nullptr) {
-        take_states(heartbeat_subscription);
-      }
-      if (set->subscriptions[2] != nullptr) {
-        take_proposals();
-      }
-      notify(settle_deferred());
-      if (stopping.load()) break;
-      event([&] { return protocol.tick(Clock::now()); });
-      notify_manager_changes();
     }
+  }
+
+  // One wake-up of the participant's thread; false once it is stopping.
+  bool turn() {
+    auto timeout = std::chrono::nanoseconds(0);
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      timeout = std::max(std::chrono::nanoseconds(0),
+                         std::chrono::duration_cast<std::chrono::nanoseconds>(
+                             protocol.next_tick() - Clock::now()));
+    }
+    rcl_wait_set_t* set = wait_set.get();
+    if (rcl_wait_set_clear(set) != RCL_RET_OK ||
+        rcl_wait_set_add_subscription(set, state_subscription.get(), nullptr) != RCL_RET_OK ||
+        rcl_wait_set_add_subscription(set, heartbeat_subscription.get(), nullptr) != RCL_RET_OK ||
+        rcl_wait_set_add_subscription(set, proposal_subscription.get(), nullptr) != RCL_RET_OK ||
+        rcl_wait_set_add_guard_condition(set, wake.get(), nullptr) != RCL_RET_OK) {
+      std::fprintf(stderr, "contextros: participant wait set: %s\n", rcl_get_error_string().str);
+      rcl_reset_error();
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      return true;
+    }
+    const rcl_ret_t waited = rcl_wait(set, timeout.count());
+    if (waited != RCL_RET_OK && waited != RCL_RET_TIMEOUT) {
+      rcl_reset_error();  // the context is shutting down; the destructor stops us
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      return true;
+    }
+    if (stopping.load()) {
+      return false;
+    }
+    if (set->subscriptions[0] != nullptr) {
+      take_states(state_subscription);
+    }
+    if (set->subscriptions[1] != nullptr) {
+      take_states(heartbeat_subscription);
+    }
+    if (set->subscriptions[2] != nullptr) {
+      take_proposals();
+    }
+    notify(settle_deferred());
+    if (stopping.load()) {
+      return false;
+    }
+    event([&] { return protocol.tick(Clock::now()); });
+    notify_manager_changes();
+    return true;
   }
 
   // Called with `mutex` held.
@@ -484,10 +504,13 @@ Participant::~Participant() {
   } else {
     impl_->thread.join();
   }
-  std::lock_guard<std::mutex> lock(impl_->mutex);
-  impl_->run(impl_->protocol.leave());
-  std::this_thread::sleep_for(leave_repeat_after);
-  impl_->run(impl_->protocol.leave());
+  try {
+    std::lock_guard<std::mutex> lock(impl_->mutex);
+    impl_->run(impl_->protocol.leave());
+    std::this_thread::sleep_for(leave_repeat_after);
+    impl_->run(impl_->protocol.leave());
+  } catch (...) {  // best effort: the manager drops a silent node anyway
+  }
 }
 
 void Participant::host(const std::string& node_name,

@@ -202,3 +202,21 @@ TEST_F(ParticipantAdapter, AListenerMayDestroyItsOwnContextNode) {
 }
 
 }  // namespace
+
+namespace {
+
+// Whatever a listener throws, the participant goes on.
+TEST_F(ParticipantAdapter, AListenerThrowingAnythingDoesNotStopTheParticipant) {
+  FakeManager manager(context);
+  RclNode follower(context, "follower", test_namespace());
+  Participant participant(follower.get(), {std::vector<std::string>{}});
+  participant.add_listener([](const contextros::ros::LayerState& applied) {
+    if (applied.epoch == 9) throw 42;
+  });
+  manager.states.publish(state(9, {"AdapterA"}));
+  ASSERT_TRUE(eventually([&] { return participant.applied_epoch() == 9; }));
+  manager.states.publish(state(10, {"AdapterB"}));
+  EXPECT_TRUE(eventually([&] { return participant.applied_epoch() == 10; }));
+}
+
+}  // namespace
