@@ -16,10 +16,12 @@
 #include <chrono>
 #include <cmath>
 #include <contextros/activation.hpp>
+#include <contextros/errors.hpp>
 #include <contextros/ros/participant.hpp>
 #include <contextros/ros/rcl_handles.hpp>
 #include <contextros/ros/rcl_node.hpp>
 #include <cstdio>
+#include <functional>
 #include <geometry_msgs/msg/pose_stamped.hpp>
 #include <geometry_msgs/msg/twist_stamped.hpp>
 #include <optional>
@@ -55,6 +57,29 @@ double wall_seconds() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
+
+// Waits for SIGINT / SIGTERM (blocked in every thread) on a thread of its own, then calls
+// `on_signal`; joined on destruction (woken by a SIGTERM of its own if none came).
+class SignalWaiter {
+ public:
+  SignalWaiter(const sigset_t& signals, std::function<void()> on_signal)
+      : thread_([this, signals, on_signal = std::move(on_signal)] {
+          int signal_number = 0;
+          sigwait(&signals, &signal_number);
+          done_ = true;
+          on_signal();
+        }) {}
+  ~SignalWaiter() {
+    if (!done_) pthread_kill(thread_.native_handle(), SIGTERM);
+    thread_.join();
+  }
+  SignalWaiter(const SignalWaiter&) = delete;
+  SignalWaiter& operator=(const SignalWaiter&) = delete;
+
+ private:
+  std::atomic<bool> done_{false};
+  std::thread thread_;
+};
 
 std::string joined(const std::vector<std::string>& names) {
   std::string out;
@@ -100,8 +125,14 @@ class Localization {
       if (contextros::active_layers().empty()) {
         continue;  // the manager has not said where we are yet
       }
-      // The layered call: the active location layer's estimate_pose.
-      const Pose pose = estimate_pose(pose_, Sensors{message.angular_velocity.z, speed_, gps_fix_}, dt);
+      // The layered call: the active location layer's estimate_pose. The manager may switch
+      // to no layer right after the check above.
+      Pose pose;
+      try {
+        pose = estimate_pose(pose_, Sensors{message.angular_velocity.z, speed_, gps_fix_}, dt);
+      } catch (const contextros::NoImplementationError&) {
+        continue;
+      }
       gps_fix_.reset();  // each fix is used once
       if (pose.source != pose_.source) {
         std::printf("position from the %s now: (%.1f, %.1f)\n", pose.source.c_str(), pose.x,
@@ -150,12 +181,10 @@ int main(int argc, char** argv) {
     ros::RclNode node(context, "localization");
     ros::RclGuardCondition stop(&context.get());
     std::atomic<bool> stopping{false};
-    std::thread([&] {
-      int signal_number = 0;
-      sigwait(&stop_signals, &signal_number);
+    SignalWaiter signals(stop_signals, [&] {
       stopping = true;
       stop.trigger();
-    }).detach();
+    });
 
     Localization localization(node);
     // Follows the Layer manager: announces Indoor and Outdoor (from the layer file).
