@@ -28,13 +28,7 @@ Configuration with(Configuration layers, const std::string& layer, const Definit
 
 }  // namespace
 
-bool is_identifier(const std::string& name) {
-  if (name.empty()) return false;
-  auto letter = [](char c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_'; };
-  if (!letter(name[0])) return false;
-  return std::all_of(name.begin(), name.end(),
-                     [&](char c) { return letter(c) || (c >= '0' && c <= '9'); });
-}
+bool is_identifier(const std::string& name) { return is_layer_name(name); }
 
 void validate(const Configuration& configuration, const Definitions& definitions) {
   std::set<std::string> active;
@@ -127,3 +121,62 @@ Configuration replay(const Configuration& current, const std::vector<Step>& step
 }
 
 }  // namespace contextros::detail
+
+namespace contextros {
+
+namespace {
+
+// The code point starting at `at` (advanced past it), or -1 for ill-formed UTF-8.
+long next_code_point(std::string_view text, std::size_t& at) {
+  const auto byte = [&](std::size_t i) { return static_cast<unsigned char>(text[i]); };
+  const unsigned char lead = byte(at);
+  std::size_t length = 0;
+  long point = 0;
+  long minimum = 0;
+  if (lead < 0x80) {
+    ++at;
+    return lead;
+  } else if (lead >= 0xc2 && lead <= 0xdf) {
+    length = 2, point = lead & 0x1f, minimum = 0x80;
+  } else if (lead >= 0xe0 && lead <= 0xef) {
+    length = 3, point = lead & 0x0f, minimum = 0x800;
+  } else if (lead >= 0xf0 && lead <= 0xf4) {
+    length = 4, point = lead & 0x07, minimum = 0x10000;
+  } else {
+    return -1;
+  }
+  if (at + length > text.size()) return -1;
+  for (std::size_t i = 1; i < length; ++i) {
+    if ((byte(at + i) & 0xc0) != 0x80) return -1;
+    point = (point << 6) | (byte(at + i) & 0x3f);
+  }
+  if (point < minimum || point > 0x10ffff || (point >= 0xd800 && point <= 0xdfff)) return -1;
+  at += length;
+  return point;
+}
+
+bool ascii_letter(long c) { return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c == '_'; }
+
+// Beyond ASCII: not a C1 control, nor a Latin-1 sign or punctuation (but ª µ º), nor × ÷.
+bool other_letter(long c) {
+  if (c < 0xa0) return false;
+  if (c <= 0xbf) return c == 0xaa || c == 0xb5 || c == 0xba;
+  return c != 0xd7 && c != 0xf7;
+}
+
+}  // namespace
+
+bool is_layer_name(std::string_view name) {
+  std::size_t at = 0;
+  bool first = true;
+  while (at < name.size()) {
+    const long c = next_code_point(name, at);
+    if (c < 0) return false;
+    const bool letter = ascii_letter(c) || (c >= 0x80 && other_letter(c));
+    if (!letter && (first || !(c >= '0' && c <= '9'))) return false;
+    first = false;
+  }
+  return !first;
+}
+
+}  // namespace contextros

@@ -148,3 +148,22 @@ TEST_F(Relations, ActivationOrderFollowsDeclaredAfter) {
 }
 
 }  // namespace
+
+namespace {
+
+// One rule for layer names, as Python's str.isidentifier() (the participant's validation
+// uses it too).
+TEST_F(Relations, LayerNamesAreIdentifiersInUtf8) {
+  for (const char* good : {"Indoor", "_x1", "\xc3\x9c" "berland", "\xe5\xa4\x9c\xe9\x96\x93",
+                           "a\xc2\xb5"}) {
+    EXPECT_TRUE(contextros::is_layer_name(good)) << good;
+  }
+  for (const char* bad : {"", "1a", "a-b", "a b", "\xff", "a\xc3", "\xc0\xae", "a\xc2\xa0" "b",
+                          "\xed\xa0\x80", "a\xc3\x97" "b"}) {
+    EXPECT_FALSE(contextros::is_layer_name(bad)) << bad;
+  }
+  EXPECT_EQ(contextros::set_active({"\xc3\x9c" "berland"}).status, SwitchStatus::applied);
+  EXPECT_EQ(contextros::active_layers(), Names{"\xc3\x9c" "berland"});
+}
+
+}  // namespace

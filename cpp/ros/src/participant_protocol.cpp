@@ -25,26 +25,13 @@ std::string shown(const std::string& text) {
   return out + (text.size() > 40 ? "'..." : "'");
 }
 
-// Identifiers as the cores accept them (bytes above 0x7f: letters of UTF-8 names).
-bool is_identifier(const std::string& name) {
-  auto letter = [](unsigned char c) {
-    return c == '_' || (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || c >= 0x80;
-  };
-  if (name.empty() || !letter(static_cast<unsigned char>(name[0]))) {
-    return false;
-  }
-  return std::all_of(name.begin(), name.end(), [&](char c) {
-    return letter(static_cast<unsigned char>(c)) || (c >= '0' && c <= '9');
-  });
-}
-
 std::string layer_name_problem(const std::string& name, const std::string& field) {
   if (name.empty()) return field + " is empty";
   if (name.size() > max_name_length) {
     return field + " " + shown(name) + " is longer than " + std::to_string(max_name_length) +
            " characters";
   }
-  if (!is_identifier(name)) return field + " " + shown(name) + " is not an identifier";
+  if (!is_layer_name(name)) return field + " " + shown(name) + " is not an identifier";
   return "";
 }
 

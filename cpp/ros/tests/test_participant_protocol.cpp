@@ -159,6 +159,8 @@ TEST(ParticipantProtocol, BadStatesAreIgnoredAndDoNotPoisonIt) {
       {"active_layers", LayerState{5, {std::string("Night\0evil", 10)}, "", "", "m"}},
       {"active_layers", LayerState{5, {"Night", "Night"}, "", "", "m"}},
       {"active_layers", LayerState{5, {"Ni ght"}, "", "", "m"}},
+      {"active_layers", LayerState{5, {"Night\xff"}, "", "", "m"}},
+      {"active_layers", LayerState{5, {"\xc3\x97"}, "", "", "m"}},
       {"active_layers", LayerState{5, std::vector<std::string>(300, "L"), "", "", "m"}},
       {"manager_id", LayerState{5, {"Night"}, "", "", std::string("m\0", 2)}},
       {"requester", LayerState{5, {"Night"}, std::string(2000, 'x'), "", "m"}},
@@ -234,6 +236,12 @@ TEST(ParticipantProtocol, RelationViolationsReadAsThePythonOnes) {
             (std::vector<std::string>{"Slow excludes Fast, both would be active",
                                       "group 'location' allows one active layer, would have "
                                       "Indoor, Outdoor"}));
+}
+
+TEST(ParticipantProtocol, LayerNamesBeyondAsciiAreAcceptedAsTheRuntimeDoes) {
+  const LayerState state{5, {"\xc3\x9c" "berland"}, "", "", "m"};
+  EXPECT_TRUE(contextros::ros::state_problems(state).empty());
+  EXPECT_EQ(contextros::is_layer_name(state.active[0]), true);
 }
 
 }  // namespace

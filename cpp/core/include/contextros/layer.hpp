@@ -2,6 +2,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace contextros {
@@ -17,6 +18,12 @@ struct LayerInfo {
 
 bool operator==(const LayerInfo& a, const LayerInfo& b);
 inline bool operator!=(const LayerInfo& a, const LayerInfo& b) { return !(a == b); }
+
+// Whether `name` can name a layer or group: an identifier as Python's str.isidentifier()
+// says (src/contextros/protocol/validation.py), in UTF-8. ASCII exactly; beyond ASCII, any
+// well-formed code point except C1 controls and the Latin-1 signs and punctuation (no
+// Unicode tables: other non-letters pass, the manager refuses them first).
+bool is_layer_name(std::string_view name);
 
 // Registers (or replaces: the latest definition of a name wins) a layer in this process.
 // Throws LayerDefinitionError for an inconsistent declaration. Generated code calls this at
