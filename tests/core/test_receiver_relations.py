@@ -110,3 +110,23 @@ def test_a_suspended_level_applies_again_once_the_conflict_is_gone() -> None:
     deactivate(Far)
     assert (layers_for(r), layers_for(Rover)) == ((Near,), (Near,))
     assert (r.speed(), Rover().speed()) == (10, 10)
+
+
+def test_no_implementation_names_the_layers_the_receiver_saw() -> None:
+    from contextros import NoImplementationError, deactivate_for
+
+    class Sensor:
+        @layered(base=False)
+        def read(self) -> int: ...
+
+        @read.partial(Near)
+        def read(self) -> int:
+            return 7
+
+    s = Sensor()
+    activate(Near)
+    deactivate_for(s, Near)
+    activate_for(s, Extra)
+    assert Sensor().read() == 7
+    with pytest.raises(NoImplementationError, match=r"active layers: RelExtra\)"):
+        s.read()

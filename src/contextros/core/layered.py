@@ -291,11 +291,15 @@ class LayeredFunction:
 
     def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname
+        owner = self
 
         def no_implementation(*args: Any, **kwargs: Any) -> Any:
             from contextros.core.runtime import RUNTIME
 
-            active = ", ".join(layer.name for layer in RUNTIME.effective()) or "none"
+            # On the per-receiver path the call saw its receiver's layers: name those.
+            receiver = args[0] if owner.receiver_kind and args else None
+            layers = RUNTIME.effective(receiver)
+            active = ", ".join(layer.name for layer in layers) or "none"
             raise NoImplementationError(
                 f"{qualname}() has no base implementation and no active layer provides it "
                 f"(active layers: {active})"
