@@ -117,3 +117,19 @@ def test_remove_layer_rewires_calls_on_a_receiver_with_that_layer() -> None:
         + ".<locals>.Robot.speed",
     )
     assert (r.speed(), whole.speed(), Robot().speed()) == (1, 1, 1)
+
+
+def test_layers_for_follows_decisive_switches_without_layered_methods() -> None:
+    from contextros import activate
+
+    Later = Layer("TablesLater")
+
+    class Plain:
+        pass
+
+    o = Plain()
+    activate_for(o, A)
+    activate(Later)
+    assert layers_for(o) == (Later, A)
+    activate_for(Plain, A)
+    assert layers_for(Plain) == (Later, A)

@@ -370,8 +370,10 @@ class Receivers:
             self._unmark()
 
     def refresh(self, active: Configuration) -> None:
-        """After a decisive switch: every receiver's heads for the new configuration."""
-        if self._functions:
+        """After a decisive switch (or changed partials): every receiver's configuration
+        and heads for the new configuration (`layers_for` reads them too, so also for
+        receivers whose classes have no layered methods)."""
+        if self._functions or self._class_steps or self._object_steps:
             self._rebuild()
             self._log_suspended(active)
 
