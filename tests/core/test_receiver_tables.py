@@ -133,3 +133,17 @@ def test_layers_for_follows_decisive_switches_without_layered_methods() -> None:
     assert layers_for(o) == (Later, A)
     activate_for(Plain, A)
     assert layers_for(Plain) == (Later, A)
+
+
+def test_forgetting_an_object_s_layers_detaches_its_finalizer() -> None:
+    import weakref
+
+    Robot = _robot_class()
+    o = Robot()
+    registered = len(weakref.finalize._registry)  # type: ignore[attr-defined]
+    for _ in range(5):
+        activate_for(o, A)
+        reset_for(o)
+    assert len(weakref.finalize._registry) == registered  # type: ignore[attr-defined]
+    activate_for(o, A)
+    assert o.speed() == 10

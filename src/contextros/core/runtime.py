@@ -209,7 +209,8 @@ class Receivers:
         self._class_steps: dict[type, Steps] = {}
         self._object_steps: dict[int, Steps] = {}
         self._object_types: dict[int, type] = {}
-        self._object_refs: dict[int, weakref.ref[Any]] = {}
+        # Forgets the object when it goes (detached when its own layers are forgotten).
+        self._finalizers: dict[int, weakref.finalize[Any, Any]] = {}
         self.objects: dict[int, _Receiver] = {}
         self.classes = _ByClass(self)
         self._functions: set[LayeredFunction] = set()
@@ -231,11 +232,22 @@ class Receivers:
                 levels.append((klass, steps))
         return levels
 
-    def _object_levels(self, key: int, override: tuple[type, Steps] | None = None) -> Levels:
-        return [
-            *self.class_levels(self._object_types[key], override),
-            (_OWN, self._object_steps[key]),
-        ]
+    def _objects(self) -> list[tuple[int, type, Steps]]:
+        """(id, class, own steps) of the objects with layers of their own, from copies:
+        a collected object's finalizer may run (on this thread, under the lock) while
+        the caller iterates."""
+        steps, types = self._object_steps.copy(), self._object_types.copy()
+        return [(key, types[key], own) for key, own in steps.items() if key in types]
+
+    def _object(self, key: int) -> object:
+        finalizer = self._finalizers.get(key)
+        found = finalizer.peek() if finalizer is not None else None
+        return found[0] if found is not None else None
+
+    def _object_levels(
+        self, cls: type, own: Steps, override: tuple[type, Steps] | None = None
+    ) -> Levels:
+        return [*self.class_levels(cls, override), (_OWN, own)]
 
     def of(self, receiver: object) -> _Receiver | None:
         found = self.objects.get(id(receiver))
@@ -280,16 +292,17 @@ class Receivers:
                 adding=forget is None,
             )
             if new:
-                if key not in self._object_steps:
+                if key not in self._finalizers:
                     try:
-                        weakref.finalize(target, self._object_gone, key)
+                        finalizer = weakref.finalize(target, self._object_gone, key)
                     except TypeError:
                         raise LayerDefinitionError(
                             f"per-object activation needs an object that supports weak "
                             f"references; {cls.__name__} has __slots__ without "
                             "'__weakref__' (or is a built-in type): activate for its class"
                         ) from None
-                    self._object_refs[key] = weakref.ref(target)
+                    finalizer.atexit = False
+                    self._finalizers[key] = finalizer
                 self._object_steps[key] = new
                 self._object_types[key] = cls
             else:
@@ -311,13 +324,13 @@ class Receivers:
                 cls, target, self.class_levels(cls), self.class_levels(cls, override), adding=adding
             )
         concerned = set(affected)
-        for key, cls in list(self._object_types.items()):
+        for key, cls, own in self._objects():
             if cls in concerned:
                 self._check(
-                    self._object_refs[key](),
+                    self._object(key),
                     target,
-                    self._object_levels(key),
-                    self._object_levels(key, override),
+                    self._object_levels(cls, own),
+                    self._object_levels(cls, own, override),
                     adding=adding,
                 )
 
@@ -343,7 +356,9 @@ class Receivers:
     def _forget_object(self, key: int) -> None:
         self._object_steps.pop(key, None)
         self._object_types.pop(key, None)
-        self._object_refs.pop(key, None)
+        finalizer = self._finalizers.pop(key, None)
+        if finalizer is not None:
+            finalizer.detach()  # a no-op once the object went
 
     def _object_gone(self, key: int) -> None:
         with self.runtime.lock:
@@ -360,11 +375,15 @@ class Receivers:
         with the new ones right after (by the switch, `_mark` or `_reinstall`), so the
         tables the functions read are always `objects` and `classes`."""
         active = self.runtime.active
+        present = self._objects()
         objects = {
-            key: _Receiver(_configure(active, self._object_levels(key))[0])
-            for key in self._object_steps
+            key: _Receiver(_configure(active, self._object_levels(cls, own))[0])
+            for key, cls, own in present
         }
         self.objects = objects
+        for key, _, _ in present:  # gone meanwhile (its finalizer ran on this thread)
+            if key not in self._object_steps:
+                objects.pop(key, None)
         self.classes = _ByClass(self)
         if not self._class_steps and not self._object_steps:
             self._unmark()
@@ -385,14 +404,16 @@ class Receivers:
         receivers: list[tuple[object, object, Levels]] = [
             (cls, cls, self.class_levels(cls)) for cls in self._class_steps
         ]
-        receivers += [(key, _OWN, self._object_levels(key)) for key in self._object_steps]
+        receivers += [
+            (key, _OWN, self._object_levels(cls, own)) for key, cls, own in self._objects()
+        ]
         for receiver, own, levels in receivers:
             error = _configure(active, levels)[1].get(own)
             if error is None:
                 continue
             suspended.add((receiver, own))
             if (receiver, own) not in self._suspended:
-                shown = self._object_refs[receiver]() if own is _OWN else receiver  # type: ignore[index]
+                shown = self._object(receiver) if isinstance(receiver, int) else receiver
                 log.warning(
                     "contextros: %s suspended while the decisive configuration breaks a "
                     "relation with them: %s",
@@ -405,7 +426,9 @@ class Receivers:
         self._class_steps.clear()
         self._object_steps.clear()
         self._object_types.clear()
-        self._object_refs.clear()
+        for finalizer in self._finalizers.values():
+            finalizer.detach()
+        self._finalizers.clear()
         self._suspended = set()
         self._rebuild()
 
