@@ -179,3 +179,40 @@ def test_commands_waiting_for_the_layers_ros_side_are_capped(client: LayerClient
         assert "at most 2 (max_waiting_commands)" in responses[2].message
     finally:
         manager.destroy_node()
+
+
+def test_a_safe_fallback_gives_way_to_the_applied_state_when_the_manager_is_back(
+    client: LayerClient,
+) -> None:
+    """Set while the manager was lost, a fallback configuration is replaced once the manager
+    is heard again, even with the same epoch (its heartbeat is not newer than what was
+    applied)."""
+    from rclpy.node import Node
+
+    from contextros.core import Layer, active_layers, set_active
+    from contextros.protocol import LayerState
+    from contextros.ros import ContextParticipant
+    from contextros.ros.messages import state_to_msg
+
+    del client  # only for rclpy, initialised in this process by the module's client fixture
+    normal, safe = Layer("FallbackNormal"), Layer("FallbackSafe")
+    node = Node("fallback_participant")
+    participant = ContextParticipant(node, layers=[], manager_timeout=0.2)
+    participant.add_manager_listener(lambda lost: set_active([safe]) if lost else None)
+    try:
+        state = LayerState(epoch=7, active=("FallbackNormal",), manager_id="m1")
+        participant._on_state(state_to_msg(state, time.time()))
+        assert [layer.name for layer in active_layers()] == [normal.name]
+        deadline = time.monotonic() + 10
+        while not participant.protocol.manager_lost and time.monotonic() < deadline:
+            time.sleep(0.02)
+            participant._on_heartbeat()
+        assert [layer.name for layer in active_layers()] == [safe.name]
+        participant._on_state(state_to_msg(state, time.time()))  # the manager's heartbeat
+        assert not participant.protocol.manager_lost
+        assert [layer.name for layer in active_layers()] == [normal.name]
+        assert participant.applied_epoch == 7
+    finally:
+        participant.close()
+        node.destroy_node()
+        set_active([])

@@ -211,6 +211,7 @@ struct Participant::Impl {
       } else if (const auto* found = std::get_if<ManagerFound>(&action)) {
         RCUTILS_LOG_INFO_NAMED(logger, "Layer manager %s heard again", found->manager_id.c_str());
         manager_changes.push_back(false);
+        restore_applied = true;
       }
     }
   }
@@ -218,14 +219,29 @@ struct Participant::Impl {
   // On the participant's thread (or in the constructor): the only caller that applies.
   void event(const std::function<ParticipantActions()>& happen) {
     std::vector<LayerState> states;
+    std::optional<LayerState> applied_state;
     {
       std::lock_guard<std::mutex> lock(mutex);
       protocol.set_critical_section_open(in_critical_section());
       run(happen());
       states.swap(to_apply);
+      // The manager is back: a configuration set while it was lost (a safe fallback) gives
+      // way to the state applied last, unless a newer one comes now. Its epoch is not
+      // newer, so the manager's heartbeat alone would never replace it.
+      if (std::exchange(restore_applied, false) && states.empty() &&
+          protocol.applied_epoch() > 0) {
+        ParticipantReport report = protocol.report();
+        applied_state = LayerState{report.applied_epoch, std::move(report.active), "", "",
+                                   std::move(report.applied_manager_id)};
+      }
     }
     for (const LayerState& state : states) {
       apply(state);
+    }
+    if (applied_state && active_layers() != applied_state->active) {
+      RCUTILS_LOG_INFO_NAMED(logger, "back to the layers of epoch %llu",
+                             static_cast<unsigned long long>(applied_state->epoch));
+      apply(*applied_state);  // acknowledged already: the protocol ignores its outcome
     }
   }
 
@@ -482,6 +498,7 @@ struct Participant::Impl {
   std::vector<bool> manager_changes;  // lost (true) / found (false), to tell the listeners
   std::vector<LayerState> applied_states;  // to tell the listeners
   std::vector<LayerState> to_apply;        // by event(), once `mutex` is released
+  bool restore_applied = false;            // the manager was found again
   std::optional<Clock::time_point> last_rejection_logged;
   std::atomic<bool> stopping{false};
   std::thread thread;

@@ -220,3 +220,41 @@ TEST_F(ParticipantAdapter, AListenerThrowingAnythingDoesNotStopTheParticipant) {
 }
 
 }  // namespace
+
+namespace {
+
+// A safe configuration set while the manager was lost gives way to the applied state when
+// the manager is back with the same epoch (its heartbeat is not newer than what was applied).
+TEST_F(ParticipantAdapter, TheAppliedStateReturnsWhenTheManagerIsBack) {
+  FakeManager manager(context);
+  RclNode follower(context, "follower", test_namespace());
+  contextros::ros::ParticipantOptions options;
+  options.layers = std::vector<std::string>{};
+  options.manager_timeout = 300ms;
+  Participant participant(follower.get(), options);
+  std::atomic<int> lost{0};
+  std::atomic<int> found{0};
+  participant.add_manager_listener([&](bool is_lost) {
+    if (is_lost) {
+      contextros::set_active({"AdapterB"});  // the safe fallback
+      ++lost;
+    } else {
+      ++found;
+    }
+  });
+  manager.states.publish(state(11, {"AdapterA"}));
+  ASSERT_TRUE(eventually([&] { return participant.applied_epoch() == 11; }));
+  ASSERT_TRUE(eventually([&] { return lost.load() == 1; }));
+  EXPECT_EQ(contextros::active_layers(), std::vector<std::string>{"AdapterB"});
+  ASSERT_TRUE(manager.heartbeats_matched());
+  ASSERT_TRUE(eventually([&] {
+    manager.heartbeats.publish(state(11, {"AdapterA"}));  // best effort: until heard
+    return found.load() > 0;
+  }));
+  EXPECT_TRUE(eventually([&] {
+    return contextros::active_layers() == std::vector<std::string>{"AdapterA"};
+  }));
+  EXPECT_EQ(participant.applied_epoch(), 11u);
+}
+
+}  // namespace

@@ -60,8 +60,8 @@ from contextros.ros.topics import (
 StateListener = Callable[[LayerState], object]
 # Called with True when the manager is lost (not heard for the liveness bound), with False
 # when it is heard again. The node keeps its layers meanwhile; a listener may switch to a
-# safe configuration (with the core's `activate`/`set_active`: the next state from the
-# manager replaces it once the link is back).
+# safe configuration (with the core's `activate`/`set_active`): once the manager is heard
+# again, its newer state or else the state applied last replaces it.
 ManagerListener = Callable[[bool], object]
 # Asked about an atomic activation's proposed state: return why this node cannot apply it
 # ("" or None: it can). Runs in the executor; keep it short.
@@ -273,6 +273,10 @@ class ContextParticipant:
                     throttle_duration_sec=10.0,
                 )
             elif isinstance(action, ManagerLost | ManagerFound):
+                if isinstance(action, ManagerFound) and not any(
+                    isinstance(other, ApplyState) for other in actions
+                ):
+                    self._restore_applied()
                 self._manager_changed(action)
         # Wake up for the next repeat of a report, if one is due; else sleep.
         if self.protocol.next_repeat is None:
@@ -280,6 +284,15 @@ class ContextParticipant:
                 self._repeat_timer.cancel()
         elif self._repeat_timer.is_canceled():
             self._repeat_timer.reset()
+
+    def _restore_applied(self) -> None:
+        """The manager is back with no newer state: a configuration set while it was lost
+        (a safe fallback) gives way to the state applied last (the heartbeat is not newer)."""
+        current = tuple(layer.name for layer in active_layers())
+        if self.state is None or current == self.state.active:
+            return
+        self.node.get_logger().info(f"back to the layers of epoch {self.state.epoch}")
+        self._apply(self.state)  # acknowledged already: the protocol ignores its outcome
 
     def _manager_changed(self, event: ManagerLost | ManagerFound) -> None:
         lost = isinstance(event, ManagerLost)

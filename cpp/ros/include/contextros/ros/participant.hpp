@@ -43,7 +43,8 @@ struct ParticipantOptions {
 using StateListener = std::function<void(const LayerState&)>;
 // Called on the participant's thread with true when the manager is lost (not heard for
 // manager_timeout), with false when it is heard again. A listener may set_active a safe
-// configuration; the manager's next state replaces it once the link is back.
+// configuration; once the manager is heard again, the participant re-applies the state it
+// applied last (if the runtime's layers differ from it) or the manager's newer state.
 using ManagerListener = std::function<void(bool lost)>;
 // Asked about an atomic activation's proposed state, on the participant's thread: return why
 // this process cannot apply it ("" : it can). Besides, the participant votes no while a
