@@ -367,7 +367,12 @@ def test_a_restarted_manager_restores_the_values_from_before_its_layers(
         processes.manager(*arguments, name="again, restarted")
         wait_registry(
             again,
-            lambda r: r.manager_id != first and not r.recovering and r.epoch > result.epoch,
+            lambda r: (
+                r.manager_id != first
+                and not r.recovering
+                and r.epoch > result.epoch
+                and len(r.participants) == 1
+            ),
         )
         result = again.request((), ["Slow"], synchronous=True, timeout=5)
         assert result.success, result.message
