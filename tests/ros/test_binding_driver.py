@@ -40,6 +40,9 @@ class _Node:
     def get_logger(self) -> _Logger:
         return self.logger
 
+    def create_client(self, service_type: Any, name: str) -> object:
+        return object()
+
 
 class FakeDriver(BindingDriver):
     """Nodes held in dictionaries; `down` nodes do not answer, `rejecting` nodes refuse

@@ -106,6 +106,14 @@ class BindingDriver:
         self.memory = memory
         if memory is not None:
             self._load(memory)
+        # Discovery of a service takes a while (seconds on a loaded machine): the clients
+        # exist from the start, so the first switch does not wait for it.
+        for name in sorted({self.resolve(b.node) for b in bindings.parameters}):
+            self._client(name, "get_parameters", GetParameters)
+            self._client(name, "set_parameters", SetParameters)
+        for name in sorted({self.resolve(b.node) for b in bindings.lifecycles}):
+            self._client(name, "get_state", GetState)
+            self._client(name, "change_state", ChangeState)
 
     # -- memory across restarts ---------------------------------------------------------
 
