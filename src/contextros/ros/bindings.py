@@ -16,6 +16,7 @@ from __future__ import annotations
 import json
 import os
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -90,11 +91,15 @@ class BindingDriver:
         bindings: Bindings,
         *,
         call_timeout: float = 2.0,
+        discovery_time: float = 5.0,
         memory: Path | None = None,
     ) -> None:
         self.node = node
         self.bindings = bindings
         self.call_timeout = call_timeout
+        # Until this (monotonic) time, a node's services may still be being discovered: a
+        # call waits for them until then, not just `call_timeout`.
+        self.discovered_by = time.monotonic() + discovery_time
         # The configuration ROS reflects now (what the last completed switch was for).
         self.applied: tuple[str, ...] = ()
         # Values and states from before any layer touched them, to restore.
@@ -287,7 +292,8 @@ class BindingDriver:
 
     def _call(self, node: str, kind: str, service_type: Any, request: Any, what: str) -> Any:
         client = self._client(node, kind, service_type)
-        if not client.wait_for_service(timeout_sec=self.call_timeout):
+        wait = max(self.call_timeout, self.discovered_by - time.monotonic())
+        if not client.wait_for_service(timeout_sec=wait):
             raise BindingError(f"node {node} does not answer on {node}/{kind} ({what})")
         future = client.call_async(request)
         finished = threading.Event()
