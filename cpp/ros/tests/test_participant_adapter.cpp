@@ -258,3 +258,44 @@ TEST_F(ParticipantAdapter, TheAppliedStateReturnsWhenTheManagerIsBack) {
 }
 
 }  // namespace
+
+namespace {
+
+// While another thread destroys the carrying ContextNode, a listener running on the
+// participant's thread asks who carries it: the destructor must not hold the process's lock
+// while it waits for that thread.
+TEST_F(ParticipantAdapter, AListenerMayAskForTheCarrierWhileItsNodeIsDestroyed) {
+  FakeManager manager(context);
+  RclNode first_node(context, "first_c", test_namespace());
+  auto first = std::make_unique<ContextNode>(first_node.get());
+  struct Shared {
+    std::promise<void> entered;
+    std::promise<void> destroying;
+    std::promise<void> asked;
+    bool armed = true;
+  };
+  auto shared = std::make_shared<Shared>();
+  std::shared_future<void> destroying = shared->destroying.get_future().share();
+  ContextNode::add_listener([shared, destroying](const contextros::ros::LayerState&) {
+    if (!shared->armed) return;
+    shared->armed = false;
+    shared->entered.set_value();
+    destroying.wait();
+    std::this_thread::sleep_for(100ms);  // lets the destructor take the process's lock
+    (void)ContextNode::carrier();
+    shared->asked.set_value();
+  });
+  manager.states.publish(state(12, {"AdapterA"}));
+  std::future<void> entered = shared->entered.get_future();
+  within_10_s(entered, "the listener was not called");
+  std::thread destroyer([&] {
+    shared->destroying.set_value();
+    first.reset();
+  });
+  std::future<void> asked = shared->asked.get_future();
+  within_10_s(asked, "a listener asked for the carrier while its node was destroyed");
+  destroyer.join();
+  EXPECT_EQ(ContextNode::carrier(), "");
+}
+
+}  // namespace
