@@ -286,8 +286,10 @@ struct Participant::Impl {
       run(protocol.applied(state, Clock::now()));
     } else {
       const std::string why = outcome.error.empty() ? "the switch was dropped" : outcome.error;
-      RCUTILS_LOG_ERROR_NAMED(logger, "cannot apply epoch %llu: %s",
-                              static_cast<unsigned long long>(state.epoch), why.c_str());
+      if (state.epoch > protocol.applied_epoch()) {  // else moot, as protocol.failed() says
+        RCUTILS_LOG_ERROR_NAMED(logger, "cannot apply epoch %llu: %s",
+                                static_cast<unsigned long long>(state.epoch), why.c_str());
+      }
       run(protocol.failed(state, why, Clock::now()));
     }
   }
