@@ -3,6 +3,8 @@ a `//` comment and a `;` may end them, errors point at the same columns."""
 
 from __future__ import annotations
 
+import pytest
+
 from contextros.language.flavours import parse_with_diagnostics
 
 LINES = [
@@ -49,3 +51,51 @@ def test_a_cpp_rule_error_has_its_column_and_caret() -> None:
     (error,) = [d.render() for d in diagnostics if d.is_error]
     assert error.startswith("robot.cpp.layers:13:24: error: 'terrain' is not a field")
     assert error.splitlines()[-1] == " " * (4 + 23) + "^"
+
+
+def test_a_long_layer_name_reads_the_same_in_both_flavours() -> None:
+    # The whole line is read: a declaration whose ':' comes late is one in C++ too.
+    line = "parameter LowBatteryConservativeNavigation: controller max_speed = 0.3"
+    python, cpp = (
+        summary(PYTHON + line + "\n", "robot.layers"),
+        summary(CPP + line + ";\n", "robot.cpp.layers"),
+    )
+    assert python == cpp
+    assert ("LowBatteryConservativeNavigation", "controller", "max_speed", 0.3, 45) in python[1]
+
+
+def _errors(source: str, path: str) -> list[tuple[int, int, str]]:
+    _, diagnostics = parse_with_diagnostics(source, path)
+    return [(d.line, d.col, d.message) for d in diagnostics if d.is_error]
+
+
+def _both(
+    line: str, *, in_header: bool
+) -> tuple[list[tuple[int, int, str]], list[tuple[int, int, str]]]:
+    python_layers = "layer Wheels:\n    def f() -> int:\n        return 1\n"
+    cpp_layers = "Layer Wheels [\nint f() { return 1; }\n]\n"
+    if in_header:
+        python = f"x = 1\n{line}\n{python_layers}"
+        cpp = f"int x = 1;\n{line}\n{cpp_layers}"
+    else:
+        python = f"x = 1\n{python_layers}{line}\n"
+        cpp = f"int x = 1;\n{cpp_layers}{line}\n"
+    return _errors(python, "robot.layers"), _errors(cpp, "robot.cpp.layers")
+
+
+@pytest.mark.parametrize("in_header", [True, False])
+@pytest.mark.parametrize(
+    ("line", "message"),
+    [
+        ("rule R Wheels while a.b > 1", "expected ':' after the rule name"),
+        ("parameter Wheels /base speed = 1", "expected ':' after the layer name"),
+        ("lifecycle Wheels", "expected ':' after the layer name"),
+        ("rule R: Wheels while a.b >", "expected a field"),
+    ],
+)
+def test_both_flavours_detect_declaration_lines_alike(
+    line: str, message: str, in_header: bool
+) -> None:
+    python, cpp = _both(line, in_header=in_header)
+    assert [(col, text) for _, col, text in python] == [(col, text) for _, col, text in cpp]
+    assert python and message in python[0][2], python

@@ -16,15 +16,29 @@ from contextros.language.syntax import LayerFile, Position, Ref
 
 LINE_WORDS = ("rule", "parameter", "lifecycle")
 _NAME = r"[^\W\d]\w*"
-# What starts such a declaration at column 1 (enough to end a header: none is valid code).
-LINE_START = re.compile(rf"(?:rule|parameter|lifecycle)[ \t]+{_NAME}[ \t]*:")
+# What starts such a declaration at column 1, in every flavour (enough to end a header: none
+# is valid Python or C++): the word and a name, then ':', or (a declaration missing its ':',
+# reported as such) what would follow the ':' (a name, a ROS node name `/base`, `~/x`) or
+# the end of the line. Not after a word that continues a Python expression (`rule in rules`,
+# `parameter if x else y`).
+LINE_START = re.compile(
+    rf"(?:rule|parameter|lifecycle)[ \t]+(?P<name>{_NAME})"
+    rf"(?:(?P<colon>[ \t]*:)|[ \t]+(?=[^\W\d]|~/|/(?![/*]))|[ \t]*(?=\#|\r|\n|$))"
+)
+_CONTINUES_EXPRESSION = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
 _HEAD = re.compile(
     rf"(?P<word>rule|parameter|lifecycle)[ \t]+(?P<name>{_NAME})?[ \t]*(?P<colon>:)?"
 )
 
 
-def is_line_declaration(text: str) -> bool:
-    return LINE_START.match(text) is not None
+def is_line_declaration(text: str, pos: int = 0) -> bool:
+    """Whether the line starting at `pos` of `text` (a line, or a whole source with `pos`
+    at a line start) is a `rule`/`parameter`/`lifecycle` declaration. The one detector of
+    both flavours' parsers; it reads the whole line (it never looks past the line's end)."""
+    match = LINE_START.match(text, pos)
+    return match is not None and (
+        match.group("colon") is not None or match.group("name") not in _CONTINUES_EXPRESSION
+    )
 
 
 def parse_line_declaration(text: str, line: int, result: LayerFile, sink: DiagnosticSink) -> None:

@@ -24,7 +24,7 @@ from contextros.language.diagnostics import (
     LayerSyntaxError,
     source_lines,
 )
-from contextros.language.lines import parse_line_declaration
+from contextros.language.lines import is_line_declaration, parse_line_declaration
 from contextros.language.python_syntax import PythonFunction, header_names, python_function
 from contextros.language.syntax import (
     BaseBlock,
@@ -44,10 +44,9 @@ RELATIONS = ("excludes", "requires", "after")
 HOOK_EVENTS = ("activate", "deactivate")
 
 _NAME = r"[^\W\d]\w*"
-# A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`).
-_DECLARATION_START = re.compile(
-    rf"(?:(layer|group|rule|parameter|lifecycle)[ \t]+({_NAME})|(base)[ \t]*:)"
-)
+# A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`);
+# `rule`, `parameter` and `lifecycle` lines are detected as in every flavour (lines.py).
+_DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
 # Keywords that may follow a name in a Python expression statement.
 _OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
 _DECLARATION_WORD = re.compile(r"(layer|base|group|rule|parameter|lifecycle)\b")
@@ -122,6 +121,8 @@ def _is_open(lines: list[str]) -> bool:
 
 
 def _starts_declaration(text: str) -> bool:
+    if is_line_declaration(text):
+        return True
     match = _DECLARATION_START.match(text)
     return match is not None and match.group(2) not in _OPERATOR_WORDS
 
@@ -132,7 +133,7 @@ def _indented_declaration(text: str) -> bool:
     if not text or text[0] not in " \t":
         return False
     stripped = text.lstrip(" \t")
-    if _BASE_LINE.match(stripped):
+    if _BASE_LINE.match(stripped) or is_line_declaration(stripped):
         return True
     match = _DECLARATION_START.match(stripped)
     if match is None or match.group(1) is None:

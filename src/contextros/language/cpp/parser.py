@@ -370,7 +370,7 @@ class _Parser:
         its `//` comment and an optional `;`); return the source with those lines blanked."""
         masked = self.source
         for number, start in enumerate(self.text.line_starts, start=1):
-            if start < header_end or not is_line_declaration(self.source[start : start + 40]):
+            if start < header_end or not is_line_declaration(self.source, start):
                 continue
             end = start
             while end < len(self.source) and self.source[end] not in "\r\n":
