@@ -479,3 +479,13 @@ def test_reserved_names_checked_clean_compile_and_run() -> None:
     namespace: dict[str, object] = {"__name__": "reserved_names_probe"}
     exec(compile_source(source, "t.layers").code(), namespace)
     assert namespace["__layers__"] == (namespace["Layer"],)
+
+
+def test_a_hook_declared_twice_in_a_layer() -> None:
+    # Found by tests/language/test_fuzz.py: the compiled module repeated `on_activate=`.
+    assert only("layer A:\n    on activate:\n        pass\n    on activate:\n        pass\n") == (
+        "error",
+        4,
+        5,
+        "layer 'A' already has an 'on activate' hook at line 2",
+    )

@@ -400,7 +400,17 @@ class _Checker:
             if self.file.language != "python":
                 continue
             # Hooks compile to module-level functions (on_activate_<Layer>, ...).
+            hook_lines: dict[str, int] = {}
             for hook in layer.hooks:
+                if hook.event in hook_lines:
+                    self.sink.error(
+                        f"layer {layer.name!r} already has an 'on {hook.event}' hook at line "
+                        f"{hook_lines[hook.event]}",
+                        hook.at.line,
+                        hook.at.col,
+                    )
+                    continue
+                hook_lines[hook.event] = hook.at.line
                 claimant = f"the 'on {hook.event}' hook of layer {layer.name!r}"
                 owner = taken.setdefault(hook.generated_name, claimant)
                 if owner != claimant:
