@@ -126,3 +126,36 @@ def test_check_searches_directories(tmp_path: Path, capsys: pytest.CaptureFixtur
     out = capsys.readouterr().out
     assert f"{tmp_path / 'sub' / 'broken.layers'}:3:16: error:" in out
     assert "notes.txt" not in out
+
+
+@pytest.mark.parametrize("name", ["robot.layers", "robot.py.layers"])
+def test_compile_names_the_module_after_the_layer_file_stem(tmp_path: Path, name: str) -> None:
+    # robot.py.layers is robot.py, not robot.py.py
+    source = tmp_path / name
+    shutil.copy(FIXTURES / "paper_listing1.layers", source)
+    assert main(["compile", str(source)]) == 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted([name, "robot.py"])
+
+
+@pytest.mark.parametrize("inner", [".cpp", ".cc", ".cxx"])
+def test_compile_names_the_cpp_output_after_the_layer_file_stem(tmp_path: Path, inner: str) -> None:
+    source = tmp_path / f"robot{inner}.layers"
+    shutil.copy(FIXTURES / "cpp" / "robot.cpp.layers", source)
+    assert main(["compile", str(source)]) == 0
+    produced = sorted(p.name for p in tmp_path.iterdir() if p != source)
+    assert produced == ["robot.layers.cpp", "robot.layers.hpp"]
+
+
+def test_load_names_the_module_after_the_layer_file_stem(tmp_path: Path) -> None:
+    import sys
+
+    from contextros.language import load
+
+    source = tmp_path / "stem_probe_robot.py.layers"
+    source.write_text("layer StemProbe:\n    def f():\n        return 1\n")
+    try:
+        module = load(source)
+        assert module.__name__ == "stem_probe_robot"
+    finally:
+        sys.modules.pop("stem_probe_robot", None)
+        sys.modules.pop("stem_probe_robot.py", None)

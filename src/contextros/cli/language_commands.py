@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from contextros.language.flavours import LANGUAGES, language_of, parse_with_diagnostics
+from contextros.language.flavours import LANGUAGES, language_of, parse_with_diagnostics, stem_of
 
 
 def register(commands: Any) -> None:
@@ -20,8 +20,9 @@ def register(commands: Any) -> None:
         "compile",
         help="translate a layer file into a Python module or C++ source and header",
         description="Translate a layer description into readable code: one function per "
-        "layer and method, one dispatch function per method. NAME.layers is Python (a "
-        "module NAME.py); NAME.cpp.layers is C++ (NAME.layers.cpp and NAME.layers.hpp).",
+        "layer and method, one dispatch function per method. NAME.layers and NAME.py.layers "
+        "are Python (a module NAME.py); NAME.cpp.layers is C++ (NAME.layers.cpp and "
+        "NAME.layers.hpp).",
     )
     compile_parser.add_argument("file", metavar="FILE.layers", help="the layer file")
     compile_parser.add_argument(
@@ -146,7 +147,8 @@ def run_compile(args: argparse.Namespace) -> int:
         return 1
     for warning in compiled.warnings:
         print(warning.render(), file=sys.stderr)
-    output = None if args.output == "-" else Path(args.output or source_path.with_suffix(".py"))
+    default = source_path.with_name(f"{stem_of(source_path)}.py")
+    output = None if args.output == "-" else Path(args.output or default)
     shown = _shown_path(source_path, output)
     if shown != args.file:
         compiled = compile_source(source, shown)
@@ -166,11 +168,7 @@ def _compile_cpp(args: argparse.Namespace, source: str) -> int:
     from contextros.language.diagnostics import LayerSyntaxError
 
     source_path = Path(args.file)
-    if args.output:
-        output = args.output
-    else:
-        stem = source_path.name.removesuffix(".layers").removesuffix(".cpp")
-        output = str(source_path.with_name(f"{stem}.layers.cpp"))
+    output = args.output or str(source_path.with_name(f"{stem_of(source_path)}.layers.cpp"))
     to_stdout = output == "-"
     try:
         compiled = compile_cpp(

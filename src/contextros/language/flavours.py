@@ -13,6 +13,9 @@ from contextros.language.diagnostics import Diagnostic
 from contextros.language.syntax import LayerFile
 
 LANGUAGES = ("python", "cpp")
+SUFFIX = ".layers"
+# The inner suffix naming a file's flavour: NAME.py.layers, NAME.cpp.layers (.cc, .cxx).
+FLAVOUR_SUFFIXES = {".py": "python", ".cpp": "cpp", ".cc": "cpp", ".cxx": "cpp"}
 
 
 def language_of(path: str | os.PathLike[str], language: str | None = None) -> str:
@@ -22,7 +25,23 @@ def language_of(path: str | os.PathLike[str], language: str | None = None) -> st
             raise ValueError(f"unknown layer language {language!r} (known: {', '.join(LANGUAGES)})")
         return language
     name = os.path.basename(os.fspath(path))
-    return "cpp" if name.endswith((".cpp.layers", ".cc.layers", ".cxx.layers")) else "python"
+    cpp = tuple(inner + SUFFIX for inner, flavour in FLAVOUR_SUFFIXES.items() if flavour == "cpp")
+    return "cpp" if name.endswith(cpp) else "python"
+
+
+def stem_of(path: str | os.PathLike[str]) -> str:
+    """The name of a layer file without `.layers` and its flavour's suffix: `robot` for
+    `robot.layers`, `robot.py.layers` and `robot.cpp.layers`; what outputs are named after
+    (`robot.py`; `robot.layers.cpp`) and, in Python, the module's name. A file not named
+    `*.layers` gives its name without its last suffix."""
+    name = os.path.basename(os.fspath(path))
+    if not name.endswith(SUFFIX):
+        return os.path.splitext(name)[0] or name
+    stem = name.removesuffix(SUFFIX)
+    base, inner = os.path.splitext(stem)
+    if inner in FLAVOUR_SUFFIXES and base:
+        stem = base
+    return stem or name
 
 
 def parse_with_diagnostics(

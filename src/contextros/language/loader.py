@@ -23,6 +23,7 @@ from pathlib import Path
 from types import CodeType, ModuleType
 
 from contextros.language.compiler import COMPILER_VERSION, compile_source
+from contextros.language.flavours import stem_of
 
 SUFFIX = ".layers"
 _HEADER = struct.Struct("<4sIqq32sH")  # magic, compiler, mtime_ns, size, sha256, len(path)
@@ -149,13 +150,14 @@ def load(
 ) -> ModuleType:
     """Compile (or take from the cache) and execute a layer file; return its module.
 
-    The module is registered in `sys.modules` under `name` (default: the file's stem),
+    The module is registered in `sys.modules` under `name` (default: the file's stem,
+    `robot` for `robot.layers` and `robot.py.layers`),
     so the layer file's header can define dataclasses and pickled types. Like `import`,
     loading the same unchanged file under the same name again returns the same module:
     several parts of a program can each `load` the layer file they use. A changed file,
     or `reload=True`, executes it again; its layers are redefined, which the core accepts.
     """
-    module_name = name or Path(path).name.removesuffix(SUFFIX)
+    module_name = name or stem_of(path)
     source = os.path.abspath(path)
     existing = sys.modules.get(module_name)
     if (
