@@ -489,3 +489,39 @@ def test_a_hook_declared_twice_in_a_layer() -> None:
         5,
         "layer 'A' already has an 'on activate' hook at line 2",
     )
+
+
+BOM = "\ufeff"
+
+
+def test_a_file_saved_with_a_byte_order_mark_checks_like_one_without(tmp_path: object) -> None:
+    from pathlib import Path
+
+    assert isinstance(tmp_path, Path)
+    path = tmp_path / "bom.layers"
+    text = "layer A:\n    def f():\n        return 1 +\n"
+    path.write_text(BOM + text, encoding="utf-8")
+    assert [(d.line, d.col) for d in check_file(path)] == [(3, 19)]
+    path.write_text(BOM + text.replace(" +", ""), encoding="utf-8")
+    assert check_file(path) == []
+
+
+@pytest.mark.parametrize(
+    ("text", "at"),
+    [
+        # A parser error after a renamed name with non-ASCII letters (columns in characters).
+        ("layer Ü:\n    def fé(x y):\n        return 1\n", "y"),
+        ("layer A:\n    def fé(x) -> str: return 'é' + x y\n", "y"),
+        # Errors only Python's compiler finds count bytes: still the character column.
+        ("layer A:\n    def f():\n        x = 'éé'; nonlocal q\n", "nonlocal"),
+        ("layer Ü:\n    def fé(): x = 'éé'; yield 1; await y\n", "await"),
+        ("layer Ü:\n    on activate: x = 'éé'; await y\n", "await"),
+        ("x = 'éé'; return 1\nlayer A:\n    def f():\n        return 1\n", "return"),
+        # AST positions (bytes) of proceed calls.
+        ("class C: ...\nlayer Ü:\n    def C.fé(self): s = 'éé'; return proceed()\n", "proceed"),
+    ],
+)
+def test_columns_count_characters_on_lines_with_non_ascii_text(text: str, at: str) -> None:
+    (found,) = diagnostics(text)
+    line = text.splitlines()[found[1] - 1]
+    assert found[2] == line.rindex(at) + 1, (found, line)

@@ -159,3 +159,18 @@ def test_load_names_the_module_after_the_layer_file_stem(tmp_path: Path) -> None
     finally:
         sys.modules.pop("stem_probe_robot", None)
         sys.modules.pop("stem_probe_robot.py", None)
+
+
+def test_compile_and_load_read_a_file_with_a_byte_order_mark(tmp_path: Path) -> None:
+    import sys
+
+    from contextros.language import load
+
+    source = tmp_path / "bom_probe.layers"
+    source.write_text("\ufefflayer BomProbe:\n    def f():\n        return 1\n", encoding="utf-8")
+    assert main(["compile", str(source)]) == 0
+    assert "BomProbe = _Layer(" in (tmp_path / "bom_probe.py").read_text(encoding="utf-8")
+    try:
+        assert load(source).f.__name__ == "f"
+    finally:
+        sys.modules.pop("bom_probe", None)

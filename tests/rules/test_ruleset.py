@@ -122,3 +122,9 @@ def test_contradictions_unless_the_conditions_exclude_each_other() -> None:
     assert "both of exclusive group 'location'" in warnings[0]
     assert warnings[1].startswith("rules NoGps (<rules>:2) and Dark")
     assert "one activates Indoor while the other deactivates it" in warnings[1]
+
+
+def test_a_rules_file_with_a_byte_order_mark(tmp_path: Path) -> None:
+    path = tmp_path / "robot.layers"
+    path.write_text("\ufeffrule A: X while a.b > 1\n", encoding="utf-8")
+    assert [rule.name for rule in RuleSet.from_files([path]).rules] == ["A"]

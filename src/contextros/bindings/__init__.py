@@ -12,11 +12,10 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 
 from contextros.language.bindings import LifecycleBinding, ParameterBinding, ParameterValue
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
-from contextros.language.flavours import parse_with_diagnostics
+from contextros.language.flavours import parse_with_diagnostics, read_source
 
 ParameterKey = tuple[str, str]  # (node, parameter), the node name resolved
 # From a declared node name to the fully qualified one (relative names: the manager's namespace).
@@ -79,7 +78,7 @@ class Bindings:
         for path in paths:
             name = os.fspath(path)
             try:
-                source = Path(name).read_text(encoding="utf-8")
+                source = read_source(name)
             except (OSError, UnicodeDecodeError) as error:
                 sink = DiagnosticSink(name, "")
                 sink.error(f"cannot read the layer file: {error}", 1, 1)

@@ -8,7 +8,13 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from contextros.language.flavours import LANGUAGES, language_of, parse_with_diagnostics, stem_of
+from contextros.language.flavours import (
+    LANGUAGES,
+    language_of,
+    parse_with_diagnostics,
+    read_source,
+    stem_of,
+)
 
 
 def register(commands: Any) -> None:
@@ -114,7 +120,7 @@ def run_check(args: argparse.Namespace) -> int:
 def _activation_warnings(path: Path, activation: list[str], language: str | None) -> list[Any]:
     from contextros.language.checker import check_activation_order
 
-    source = path.read_text(encoding="utf-8")  # readable: check_file found no error
+    source = read_source(path)  # readable: check_file found no error
     layer_file, _ = parse_with_diagnostics(source, str(path), language)
     return check_activation_order(layer_file, activation)
 
@@ -134,7 +140,7 @@ def run_compile(args: argparse.Namespace) -> int:
 
     source_path = Path(args.file)
     try:
-        source = source_path.read_text(encoding="utf-8")
+        source = read_source(source_path)
     except (OSError, UnicodeDecodeError) as error:
         print(f"{args.file}:1:1: error: cannot read the layer file: {error}", file=sys.stderr)
         return 1

@@ -19,7 +19,7 @@ from contextros.language.diagnostics import (
     LayerSyntaxError,
     sorted_diagnostics,
 )
-from contextros.language.flavours import parse_with_diagnostics
+from contextros.language.flavours import parse_with_diagnostics, read_source
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Ref
 
 # Names the compiled module defines besides the generated functions and the layers
@@ -66,7 +66,7 @@ def check_source(
 def check_file(path: str | Path, language: str | None = None) -> list[Diagnostic]:
     """`check_source` for a file on disk (an unreadable file is an error at 1:1)."""
     try:
-        source = Path(path).read_text(encoding="utf-8")
+        source = read_source(path)
     except (OSError, UnicodeDecodeError) as error:
         sink = DiagnosticSink(str(path), "")
         sink.error(f"cannot read the layer file: {error}", 1, 1)

@@ -18,11 +18,11 @@ import copy
 import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from types import CodeType
 
 from contextros.language.checker import checked
 from contextros.language.diagnostics import Diagnostic, source_lines
+from contextros.language.flavours import read_source
 from contextros.language.python_syntax import PythonFunction
 from contextros.language.syntax import Function, Hook, LayerDecl, LayerFile, Ref, SourceLine
 
@@ -80,8 +80,7 @@ def compile_source(source: str, path: str = "<layers>") -> CompiledLayers:
 
 
 def compile_file(path: str | os.PathLike[str]) -> CompiledLayers:
-    source = Path(path).read_text(encoding="utf-8")
-    return compile_source(source, str(path))
+    return compile_source(read_source(path), str(path))
 
 
 def _relocate(node: ast.AST, origins: list[_Line], source_lines: list[str]) -> None:

@@ -29,6 +29,19 @@ def language_of(path: str | os.PathLike[str], language: str | None = None) -> st
     return "cpp" if name.endswith(cpp) else "python"
 
 
+def decode_source(data: bytes) -> str:
+    """A layer file's text from its bytes: UTF-8, with or without a byte order mark (which
+    some editors write; it is not part of the text, so it cannot be a syntax error at 1:1)."""
+    return data.decode("utf-8-sig")
+
+
+def read_source(path: str | os.PathLike[str]) -> str:
+    """The text of the layer file at `path` (see `decode_source`); raises OSError or
+    UnicodeDecodeError."""
+    with open(path, "rb") as stream:
+        return decode_source(stream.read())
+
+
 def stem_of(path: str | os.PathLike[str]) -> str:
     """The name of a layer file without `.layers` and its flavour's suffix: `robot` for
     `robot.layers`, `robot.py.layers` and `robot.cpp.layers`; what outputs are named after

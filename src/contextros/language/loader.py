@@ -23,7 +23,7 @@ from pathlib import Path
 from types import CodeType, ModuleType
 
 from contextros.language.compiler import COMPILER_VERSION, compile_source
-from contextros.language.flavours import stem_of
+from contextros.language.flavours import decode_source, stem_of
 
 SUFFIX = ".layers"
 _HEADER = struct.Struct("<4sIqq32sH")  # magic, compiler, mtime_ns, size, sha256, len(path)
@@ -62,7 +62,7 @@ def _code_and_digest(path: str | os.PathLike[str]) -> tuple[CodeType, str]:
     cached = _read_cache(cache, source_path, stat, digest)
     if cached is not None:
         return cached, digest.hex()
-    compiled = compile_source(data.decode("utf-8"), source_path)
+    compiled = compile_source(decode_source(data), source_path)
     for diagnostic in compiled.warnings:
         # Attributed to the layer file's line, like Python's own SyntaxWarnings.
         warnings.warn_explicit(

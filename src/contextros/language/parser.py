@@ -35,6 +35,7 @@ from contextros.language.syntax import (
     Position,
     Ref,
     SourceLine,
+    char_of_byte,
 )
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
@@ -518,13 +519,20 @@ class _Parser:
     def _rename(self, line: SourceLine, start: int, end: int, new: str) -> SourceLine:
         """Replace text[start:end] of a dedented line by `new`, keeping columns mappable.
 
-        Python's AST counts columns in UTF-8 bytes, so the shift after the new name is.
+        Python's AST counts columns in UTF-8 bytes, its parser's errors in characters: the
+        shift after the new name is kept in both.
         """
         text = line.text[:start] + new + line.text[end:]
         old_width = len(line.text[start:end].encode())
         split = len(text[: start + len(new)].encode())
         return SourceLine(
-            text, line.line, line.delta, split, old_width - len(new.encode()) + line.delta
+            text,
+            line.line,
+            line.delta,
+            split,
+            old_width - len(new.encode()) + line.delta,
+            start + len(new),
+            (end - start) - len(new) + line.delta,
         )
 
     def _function(self, first: int, end: int, layer: LayerDecl | None) -> PythonFunction | None:
@@ -615,7 +623,7 @@ class _Parser:
     def _python_lines(self, lines: list[SourceLine]) -> ast.Module | None:
         def where(row: int, col: int) -> tuple[int, int]:
             line = lines[min(max(row, 1), len(lines)) - 1]
-            return line.line, line.column(col)
+            return line.line, line.char_column(col)
 
         return self._python("\n".join(ln.text for ln in lines) + "\n", where, lines[0].line)
 
@@ -641,7 +649,11 @@ class _Parser:
                 # `nonlocal`, `await` outside `async def`...
                 compile(node, "<layer piece>", "exec", dont_inherit=True)
             except SyntaxError as error:
-                row, col = where(error.lineno or fallback_line, max((error.offset or 1) - 1, 0))
+                # The compiler's offsets count UTF-8 bytes (its parser's count characters).
+                lineno = error.lineno or fallback_line
+                pieces = text.split("\n")
+                piece = pieces[lineno - 1] if 1 <= lineno <= len(pieces) else ""
+                row, col = where(lineno, char_of_byte(piece, (error.offset or 1) - 1))
                 self.sink.error(f"Python syntax error: {error.msg}", row, col + 1)
                 return None
             except (ValueError, RecursionError, MemoryError) as error:

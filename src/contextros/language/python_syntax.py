@@ -91,7 +91,8 @@ def _proceed_calls(
         )
         index = min(max(call.lineno, 1), len(lines)) - 1
         line = lines[index]
-        calls.append(ProceedCall(Position(line.line, line.column(call.col_offset) + 1), passes))
+        col = line.char_column(line.char_of_byte(call.col_offset))
+        calls.append(ProceedCall(Position(line.line, col + 1), passes))
     return tuple(calls)
 
 

@@ -37,8 +37,10 @@ class Ref:
 class SourceLine:
     """One line of generated text and where it came from.
 
-    `delta` is added to a generated column to get the `.layers` column. The `def` line
-    of a renamed function shifts differently after the new name (`split_col`).
+    `delta` is added to a generated column to get the `.layers` column (it is the cut
+    indentation: the same in bytes and in characters). The `def` line of a renamed function
+    shifts differently after the new name: by `delta_after` UTF-8 bytes from byte
+    `split_col` on, by `delta_after_char` characters from character `split_char` on.
     """
 
     text: str
@@ -46,11 +48,34 @@ class SourceLine:
     delta: int
     split_col: int = -1
     delta_after: int = 0
+    split_char: int = -1
+    delta_after_char: int = 0
 
     def column(self, col: int) -> int:
+        """A 0-based UTF-8 byte column of `text` (as Python's AST counts) in the file's line,
+        in bytes: for the positions of compiled code."""
         if self.split_col >= 0 and col >= self.split_col:
             return col + self.delta_after
         return col + self.delta
+
+    def char_column(self, col: int) -> int:
+        """A 0-based character column of `text` (as a parser's SyntaxError counts) in the
+        file's line, in characters: for diagnostics."""
+        if self.split_char >= 0 and col >= self.split_char:
+            return col + self.delta_after_char
+        return col + self.delta
+
+    def char_of_byte(self, col: int) -> int:
+        """The character column of `text` at its UTF-8 byte column `col`."""
+        return char_of_byte(self.text, col)
+
+
+def char_of_byte(text: str, col: int) -> int:
+    """The 0-based character column of `text` at its 0-based UTF-8 byte column `col` (Python's
+    AST, and the errors of its compiler, count bytes)."""
+    return len(
+        text.encode("utf-8", errors="surrogatepass")[: max(col, 0)].decode("utf-8", errors="ignore")
+    )
 
 
 @dataclass(frozen=True)

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
-from contextros.language.flavours import parse_with_diagnostics
+from contextros.language.flavours import parse_with_diagnostics, read_source
 from contextros.language.rules import (
     BoolOp,
     Comparison,
@@ -58,7 +58,7 @@ class RuleSet:
         for path in paths:
             name = os.fspath(path)
             try:
-                source = Path(name).read_text(encoding="utf-8")
+                source = read_source(name)
             except (OSError, UnicodeDecodeError) as error:
                 sink = DiagnosticSink(name, "")
                 sink.error(f"cannot read the layer file: {error}", 1, 1)
