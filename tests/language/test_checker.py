@@ -525,3 +525,99 @@ def test_columns_count_characters_on_lines_with_non_ascii_text(text: str, at: st
     (found,) = diagnostics(text)
     line = text.splitlines()[found[1] - 1]
     assert found[2] == line.rindex(at) + 1, (found, line)
+
+
+TWO_LAYERS = "layer A:\n    def f(): ...\nlayer B{relation}:\n    def g(): ...\n"
+
+
+def test_a_binding_naming_an_undeclared_layer() -> None:
+    found = diagnostics(
+        TWO_LAYERS.format(relation="")
+        + "parameter Typo: /base max_speed = 0.1\nlifecycle Typo: a active, b inactive\n"
+    )
+    assert found == [
+        (
+            "warning",
+            5,
+            11,
+            "parameter of layer 'Typo', which this file does not declare: the Layer manager "
+            "applies it only while a layer of that name, implemented by a node, is active",
+        ),
+        (
+            "warning",
+            6,
+            11,
+            "lifecycle of layer 'Typo', which this file does not declare: the Layer manager "
+            "applies it only while a layer of that name, implemented by a node, is active",
+        ),
+    ]
+
+
+BINDINGS = (
+    "parameter A: /base max_speed = 0.3\nparameter B: /base max_speed = 1.0\n"
+    "lifecycle A: drv active\nlifecycle B: drv inactive\n"
+)
+
+
+def test_unordered_layers_binding_one_thing_to_different_values() -> None:
+    found = diagnostics(TWO_LAYERS.format(relation="") + BINDINGS)
+    assert found == [
+        (
+            "warning",
+            6,
+            14,
+            "parameter /base max_speed is bound to 0.3 by layer 'A' (line 5) and to 1.0 by "
+            "layer 'B', which may be active together with no declared order, so it depends on "
+            "which was activated last; declare 'layer B after A' (or the reverse), or make "
+            "them exclusive ('excludes', 'group')",
+        ),
+        (
+            "warning",
+            8,
+            14,
+            "lifecycle node drv is bound to active by layer 'A' (line 7) and to inactive by "
+            "layer 'B', which may be active together with no declared order, so it depends on "
+            "which was activated last; declare 'layer B after A' (or the reverse), or make "
+            "them exclusive ('excludes', 'group')",
+        ),
+    ]
+
+
+@pytest.mark.parametrize("relation", [" after A", " excludes A"])
+def test_ordered_or_exclusive_layers_may_bind_one_thing_differently(relation: str) -> None:
+    assert diagnostics(TWO_LAYERS.format(relation=relation) + BINDINGS) == []
+
+
+def test_equal_values_and_other_parameters_are_no_conflict() -> None:
+    assert (
+        diagnostics(
+            TWO_LAYERS.format(relation="")
+            + "parameter A: /base max_speed = 0.3\nparameter B: /base max_speed = 0.3\n"
+            "parameter B: /base min_speed = 1\nparameter A: /arm max_speed = 1\n"
+            "lifecycle A: drv active\nlifecycle B: drv active, other inactive\n"
+        )
+        == []
+    )
+
+
+def test_one_layer_binding_one_parameter_twice() -> None:
+    assert only(
+        TWO_LAYERS.format(relation="")
+        + "parameter A: /base mode = 'fast'\nparameter A: /base mode = 'slow'\n"
+    ) == (
+        "warning",
+        6,
+        14,
+        "parameter /base mode is already bound to 'fast' by layer 'A' at line 5: the later "
+        "line wins",
+    )
+
+
+def test_binding_checks_in_the_cpp_flavour() -> None:
+    source = "Layer A [\nint f() { return 1; }\n]\nLayer B [\nint g() { return 1; }\n]\n" + BINDINGS
+    found = [(d.line, d.col, d.message[:40]) for d in check_source(source, "t.cpp.layers")]
+    assert found == [
+        (8, 14, "parameter /base max_speed is bound to 0."),
+        (10, 14, "lifecycle node drv is bound to active by"),
+    ]
+    assert "declare 'Layer B after A'" in check_source(source, "t.cpp.layers")[0].message

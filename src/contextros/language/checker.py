@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from itertools import combinations
 from pathlib import Path
 
+from contextros.language.bindings import ParameterValue
 from contextros.language.diagnostics import (
     Diagnostic,
     DiagnosticSink,
@@ -20,7 +21,7 @@ from contextros.language.diagnostics import (
     sorted_diagnostics,
 )
 from contextros.language.flavours import parse_with_diagnostics, read_source
-from contextros.language.syntax import Function, LayerDecl, LayerFile, Ref
+from contextros.language.syntax import Function, LayerDecl, LayerFile, Position, Ref
 
 # Names the compiled module defines besides the generated functions and the layers
 # (compiler.py), each with what it is; a layer or a method of that name would replace it.
@@ -132,6 +133,11 @@ class _Checker:
         self.group_of: dict[str, str] = {}
         self.excluded: set[frozenset[str]] = set()
         self.broken: set[str] = set()  # layers whose relations are already errors
+        # Filled by _interaction: the closures of 'requires' and 'after', and which layers
+        # can be activated at all.
+        self.requires: dict[str, set[str]] = {}
+        self.after: dict[str, set[str]] = {}
+        self.possible: dict[str, bool] = {}
 
     def run(self) -> list[Diagnostic]:
         self._declarations()
@@ -141,6 +147,7 @@ class _Checker:
         self._names()
         self._interaction()
         self._rules()
+        self._bindings()
         return self.sink.items
 
     # -- context rules (language-neutral) ------------------------------------------------
@@ -456,12 +463,21 @@ class _Checker:
                 return a, b
         return None
 
+    def _unordered(self, a: str, b: str) -> bool:
+        """Whether declared layers `a` and `b` may be active together with no declared order
+        between them: then what both define depends on which was activated last."""
+        if a == b or not (self.possible.get(a) and self.possible.get(b)):
+            return False
+        if self._conflict({a, b, *self.requires[a], *self.requires[b]}) is not None:
+            return False
+        return b not in self.after[a] and a not in self.after[b]
+
     def _interaction(self) -> None:
-        requires = {name: self._closure(name, "requires") for name in self.layers}
-        after = {name: self._closure(name, "after") for name in self.layers}
+        requires = self.requires = {name: self._closure(name, "requires") for name in self.layers}
+        after = self.after = {name: self._closure(name, "after") for name in self.layers}
         self._cycles("requires", requires, error=False)
         self._cycles("after", after, error=True)
-        possible: dict[str, bool] = {}
+        possible = self.possible
         for name, layer in self.layers.items():
             needed = {name, *requires[name]}
             conflict = self._conflict(needed)
@@ -483,11 +499,7 @@ class _Checker:
         for key, functions in by_method.items():
             for first, second in combinations(functions, 2):
                 a, b = first.layer or "", second.layer or ""
-                if a == b or not (possible.get(a) and possible.get(b)):
-                    continue
-                if self._conflict({a, b, *requires[a], *requires[b]}) is not None:
-                    continue
-                if b in after[a] or a in after[b]:
+                if not self._unordered(a, b):
                     continue
                 self.sink.warning(
                     f"{key} is refined by layers {a!r} (line {first.at.line}) and {b!r}, which "
@@ -519,3 +531,68 @@ class _Checker:
                     ref.at.line,
                     ref.at.col,
                 )
+
+    # -- parameter and lifecycle bindings (language-neutral) ------------------------------
+
+    def _bindings(self) -> None:
+        """Bindings naming layers the file does not declare, and two bindings of one node
+        parameter (one lifecycle node) to different values by layers that may be active
+        together with no declared order: the value would depend on the activation order."""
+        items: list[tuple[str, str, ParameterValue, Ref, Position]] = [
+            ("parameter", f"{p.node} {p.name}", p.value, p.layer, p.at)
+            for p in self.file.parameters
+        ]
+        items += [("lifecycle", c.node, c.state, c.layer, c.at) for c in self.file.lifecycles]
+        warned: set[Position] = set()
+        for kind, _, _, layer, _ in items:
+            if self.layers and layer.name not in self.layers and layer.at not in warned:
+                warned.add(layer.at)
+                self.sink.warning(
+                    f"{kind} of layer {layer.name!r}, which this file does not declare: the "
+                    "Layer manager applies it only while a layer of that name, implemented by "
+                    "a node, is active",
+                    layer.at.line,
+                    layer.at.col,
+                )
+        keyword = "Layer" if self.file.language == "cpp" else "layer"
+        # What each layer binds first, per node parameter / lifecycle node, in file order.
+        bound: dict[tuple[str, str], dict[str, tuple[ParameterValue, Position]]] = {}
+        for kind, key, value, layer, at in items:
+            what = f"parameter {key}" if kind == "parameter" else f"lifecycle node {key}"
+            by_layer = bound.setdefault((kind, key), {})
+            for other, (other_value, other_at) in by_layer.items():
+                if _same(other_value, value):
+                    continue
+                if other == layer.name:
+                    self.sink.warning(
+                        f"{what} is already bound to {_shown(other_value, kind)} by layer "
+                        f"{other!r} at line {other_at.line}: the later line wins",
+                        at.line,
+                        at.col,
+                    )
+                elif self._unordered(other, layer.name):
+                    self.sink.warning(
+                        f"{what} is bound to {_shown(other_value, kind)} by layer {other!r} (line "
+                        f"{other_at.line}) and to {_shown(value, kind)} by layer {layer.name!r}, "
+                        "which may be active together with no declared order, so it depends "
+                        f"on which was activated last; declare '{keyword} {layer.name} after "
+                        f"{other}' (or the reverse), or make them exclusive ('excludes', "
+                        "'group')",
+                        at.line,
+                        at.col,
+                    )
+            by_layer.setdefault(layer.name, (value, at))
+
+
+def _same(a: ParameterValue, b: ParameterValue) -> bool:
+    """The same value as ROS receives it (1 and 1.0 and true are not the same)."""
+    return type(a) is type(b) and a == b
+
+
+def _shown(value: ParameterValue, kind: str) -> str:
+    """A value as written in a layer file (a lifecycle state unquoted: `active`)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str) and kind == "parameter":
+        return repr(value)
+    return str(value)
