@@ -50,6 +50,10 @@ def test_the_next_cpp_node_takes_the_shared_participant_over(
     applied = both.wait_applied(second.epoch)
     assert applied["active"] == ["Night", "Outdoor"]
     assert applied["mode"] == "vacuum+quiet+base"
+    # The new participant carried on from the process's epoch: the manager's current state
+    # (transient local) was nothing new to it, so it applied only the later one.
+    after = both.events[both.events.index(dropped) :]
+    assert [e["epoch"] for e in after if e["event"] == "applied"] == [second.epoch]
 
 
 def test_a_cpp_node_follows_the_manager_of_its_namespace(

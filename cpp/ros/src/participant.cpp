@@ -507,7 +507,18 @@ struct Participant::Impl {
 };
 
 Participant::Participant(rcl_node_t& node, ParticipantOptions options)
+    : Participant(node, std::move(options), nullptr) {}
+
+Participant::Participant(rcl_node_t& node, ParticipantOptions options,
+                         const ParticipantProtocol& previous)
+    : Participant(node, std::move(options), &previous) {}
+
+Participant::Participant(rcl_node_t& node, ParticipantOptions options,
+                         const ParticipantProtocol* previous)
     : impl_(std::make_shared<Impl>(node, options)) {
+  if (previous != nullptr) {
+    impl_->protocol.continue_from(*previous);
+  }
   impl_->event([this] { return impl_->protocol.announce(Clock::now()); });
   // The thread shares the Impl: destroyed from the thread itself, it outlives ~Participant.
   impl_->thread = std::thread([impl = impl_] { impl->loop(); });
@@ -580,6 +591,11 @@ std::uint64_t Participant::applied_epoch() const {
   return impl_->protocol.applied_epoch();
 }
 
+ParticipantProtocol Participant::protocol() const {
+  std::lock_guard<std::mutex> lock(impl_->mutex);
+  return impl_->protocol;
+}
+
 // -- one participant per process ----------------------------------------------------------
 
 namespace {
@@ -598,9 +614,12 @@ struct SharedParticipant {
   std::vector<ManagerListener> manager_listeners;
   std::vector<Veto> vetoes;
 
-  void carry_by_first() {
+  // `previous`: the protocol of the participant this one replaces, if any.
+  void carry_by_first(const ParticipantProtocol* previous = nullptr) {
     const Member& carrier = members.front();
-    participant = std::make_unique<Participant>(*carrier.node, carrier.options);
+    participant = previous != nullptr
+                      ? std::make_unique<Participant>(*carrier.node, carrier.options, *previous)
+                      : std::make_unique<Participant>(*carrier.node, carrier.options);
     for (const StateListener& listener : listeners) {
       participant->add_listener(listener);
     }
@@ -660,12 +679,17 @@ ContextNode::~ContextNode() {
     }
     leaving = std::move(process.participant);
   }
+  std::optional<ParticipantProtocol> previous;
+  if (leaving) {
+    previous = leaving->protocol();
+  }
   // Destroyed without the lock: its thread may be in a listener that takes it.
   leaving.reset();  // leaves
   std::lock_guard<std::mutex> lock(process.mutex);
   if (!process.participant && !process.members.empty()) {
     try {
-      process.carry_by_first();  // the next node of the process takes over
+      // The next node of the process takes over, from where the process stands.
+      process.carry_by_first(previous ? &*previous : nullptr);
     } catch (const std::exception& error) {
       std::fprintf(stderr, "contextros: no hand-over of the participant: %s\n", error.what());
     } catch (...) {

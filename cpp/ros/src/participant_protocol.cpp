@@ -175,6 +175,17 @@ ParticipantReport ParticipantProtocol::report(bool leaving) const {
   return report;
 }
 
+void ParticipantProtocol::continue_from(const ParticipantProtocol& previous) {
+  applied_epoch_ = previous.applied_epoch_;
+  applied_manager_id_ = previous.applied_manager_id_;
+  active_ = previous.active_;
+  failed_epoch_ = previous.failed_epoch_;
+  error_ = previous.error_;
+  manager_id_ = previous.manager_id_;
+  manager_lost_ = previous.manager_lost_;
+  manager_heard_ = previous.manager_heard_;
+}
+
 ParticipantActions ParticipantProtocol::announce(Clock::time_point now) {
   if (!manager_heard_) {
     manager_heard_ = now;  // the manager-lost clock starts with the node

@@ -110,6 +110,25 @@ TEST(ParticipantProtocol, ReportsAreRepeatedOnlyWhileTheLinkShowsLoss) {
   EXPECT_TRUE(p.tick(t0 + 34050ms).empty());
 }
 
+TEST(ParticipantProtocol, ASuccessorCarriesOnFromTheParticipantItReplaces) {
+  // The carrier node of a process goes; the next node carries a new participant (a new
+  // incarnation) for the same process, whose layers are still those applied before.
+  ParticipantProtocol previous = participant();
+  previous.receive_state(state(5, {"Night"}), t0);
+  previous.applied(state(5, {"Night"}), t0);
+  ParticipantProtocol successor("/q", "inc-2", {LayerInfo{"Night", {}, {}, {}, ""}});
+  successor.continue_from(previous);
+  const ParticipantReport report = only_report(successor.announce(t0 + 1s));
+  EXPECT_EQ(report.applied_epoch, 5u);
+  EXPECT_EQ(report.active, std::vector<std::string>{"Night"});
+  EXPECT_EQ(report.applied_manager_id, "m1");
+  EXPECT_TRUE(successor.receive_state(state(4), t0 + 1100ms).empty()) << "never back a state";
+  EXPECT_TRUE(successor.receive_state(state(5, {"Night"}), t0 + 1200ms).empty());
+  const ParticipantActions newer = successor.receive_state(state(6), t0 + 1300ms);
+  ASSERT_EQ(newer.size(), 1u);
+  EXPECT_TRUE(std::holds_alternative<ApplyState>(newer[0]));
+}
+
 TEST(ParticipantProtocol, HeartbeatPeriodAndRepeatsOfANewReport) {
   ParticipantProtocol p = participant();
   EXPECT_EQ(p.announce(t0).size(), 1u);

@@ -62,6 +62,9 @@ class Participant {
   // Attaches to `node` (not owned), announces itself and starts following the manager on
   // a thread of its own.
   explicit Participant(rcl_node_s& node, ParticipantOptions options = {});
+  // The same, carrying on for the process from the participant it replaces (a snapshot of
+  // its protocol): its epoch and layers, so an older state cannot take the process back.
+  Participant(rcl_node_s& node, ParticipantOptions options, const ParticipantProtocol& previous);
   // Says it leaves (the manager drops it at once) and stops its thread. Destroyed on its own
   // thread (by a listener or veto), it cannot join that thread: the thread stops as soon as
   // the listener returns and frees the rest then (the rcl node must outlive that too).
@@ -79,8 +82,12 @@ class Participant {
 
   const std::string& node_name() const;
   std::uint64_t applied_epoch() const;
+  // A copy of where its protocol stands (for a successor).
+  ParticipantProtocol protocol() const;
 
  private:
+  Participant(rcl_node_s& node, ParticipantOptions options, const ParticipantProtocol* previous);
+
   struct Impl;
   std::shared_ptr<Impl> impl_;  // shared with its thread
 };

@@ -114,6 +114,12 @@ class ParticipantProtocol {
                       Clock::duration manager_timeout = default_manager_timeout,
                       std::vector<Clock::duration> repeats = default_repeats);
 
+  // Carry on for the process from `previous`, the participant this one replaces (its node
+  // went, another node of the process carries the participant now): its applied epoch,
+  // layers, failure and manager. Call it before announce(). A switch `previous` deferred is
+  // not carried (its acknowledgement went with it): the manager's states bring it again.
+  void continue_from(const ParticipantProtocol& previous);
+
   // -- events --------------------------------------------------------------------------
   ParticipantActions announce(Clock::time_point now);
   // A state from the manager (reliable topic or heartbeat): apply it if newer. Without
