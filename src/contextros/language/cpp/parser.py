@@ -383,7 +383,7 @@ class _Parser:
         return masked
 
     def _declaration_line(self, start: int) -> bool:
-        if is_line_declaration(self.source[start : start + 80]):
+        if is_line_declaration(self.source, start):
             return True
         word, end = self._word(start)
         if word not in DECLARATION_WORDS or end == start:
