@@ -188,6 +188,45 @@ def test_a_method_needs_a_parameter_for_the_instance() -> None:
     )
 
 
+@pytest.mark.parametrize(
+    ("block", "decorator"),
+    [
+        ("layer A", "functools.cache"),  # cached object, not a function: failed on import
+        ("layer A", "functools.lru_cache(maxsize=2)"),
+        ("layer A", "wraps_nothing"),
+        ("base", "functools.cache"),
+    ],
+)
+def test_other_decorators_are_rejected_at_the_decorator(block: str, decorator: str) -> None:
+    source = f"import functools\n{block}:\n    @{decorator}\n    def f():\n        return 1\n"
+    assert only(source) == (
+        "error",
+        3,
+        6,
+        f"decorators are not supported on implementations: @{decorator} would replace f by "
+        "what it returns, and the core layers only the plain function; decorate a helper in "
+        "the header and call it from the body",
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "what"),
+    [
+        ("__new__", "a static method"),
+        ("__init_subclass__", "a class method"),
+        ("__class__", "a 'getset_descriptor' attribute"),
+    ],
+)
+def test_what_object_gives_as_no_instance_method_cannot_be_layered(name: str, what: str) -> None:
+    assert only(f"class C: ...\nlayer A:\n    def C.{name}(cls): ...\n") == (
+        "error",
+        3,
+        9,
+        f"C.{name} cannot be layered: every class has {name} from object, as {what}, and a "
+        "layer refines only instance methods (plain functions such as __init__ or __repr__)",
+    )
+
+
 def test_descriptor_decorators_are_rejected() -> None:
     assert only("layer A:\n    @staticmethod\n    def f(): ...\n") == (
         "error",

@@ -128,6 +128,29 @@ def test_a_non_function_attribute_is_never_overwritten(tmp_path: Path) -> None:
     assert caught.value.source_line.strip() == "def Robot.clean(self): ..."
 
 
+def test_a_method_inherited_from_object_is_the_base_through_super(tmp_path: Path) -> None:
+    from contextros.language import check_file, load
+
+    path = tmp_path / "dunder.layers"
+    path.write_text(
+        "class Robot:\n    pass\n\nclass Vacuum(Robot):\n    pass\n\n"
+        "layer A:\n    def Robot.__init__(self, speed=1):\n        proceed(self)\n"
+        "        self.speed = speed * 10\n\n"
+        "    def Robot.__repr__(self):\n        return 'A:' + proceed(self)[:1]\n"
+    )
+    assert check_file(path) == []
+    module = load(path, name="dunder_layers")
+    assert not hasattr(module.Vacuum(), "speed")
+    assert repr(module.Robot()).startswith("<dunder_layers.Robot object")
+    activate("A")
+    assert (module.Robot(2).speed, module.Vacuum().speed) == (20, 10)
+    assert repr(module.Vacuum()) == "A:<"
+    with pytest.raises(TypeError):
+        module.Robot(1, 2)
+    deactivate("A")
+    assert not hasattr(module.Robot(), "speed")
+
+
 def test_a_class_without_the_method_gets_one_without_base(tmp_path: Path) -> None:
     from contextros.language import load
 

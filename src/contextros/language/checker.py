@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Iterable, Sequence
 from itertools import combinations
 from pathlib import Path
+from types import MethodDescriptorType, WrapperDescriptorType
 
 from contextros.language.bindings import ParameterValue
 from contextros.language.diagnostics import (
@@ -51,6 +52,16 @@ PYTHON_RESERVED_NAMES = {
 }
 # Decorators that turn a function into something the core cannot layer.
 DESCRIPTORS = frozenset({"staticmethod", "classmethod", "property"})
+# What every class inherits from `object` that is not an instance method (a static method,
+# class methods, attributes): `def C.__new__(cls)` could never be layered.
+_OBJECT_ATTRIBUTES = {
+    name: {
+        "builtin_function_or_method": "a static method",
+        "classmethod_descriptor": "a class method",
+    }.get(type(value).__name__, f"a {type(value).__name__!r} attribute")
+    for name, value in vars(object).items()
+    if not isinstance(value, (WrapperDescriptorType, MethodDescriptorType))
+}
 
 
 def check_source(
@@ -341,6 +352,15 @@ class _Checker:
                 function.at.line,
                 function.at.col,
             )
+        inherited = _OBJECT_ATTRIBUTES.get(function.name)
+        if self.file.language == "python" and inherited is not None:
+            self.sink.error(
+                f"{function.key} cannot be layered: every class has {function.name} from "
+                f"object, as {inherited}, and a layer refines only instance methods "
+                "(plain functions such as __init__ or __repr__)",
+                function.at.line,
+                function.at.col,
+            )
 
     def _proceed_arguments(self, function: Function) -> None:
         """`proceed` takes the method's own arguments, the instance first (Python)."""
@@ -359,12 +379,25 @@ class _Checker:
 
     def _decorators(self, function: Function) -> None:
         for decorator in function.decorators:
-            if decorator in DESCRIPTORS:
+            if decorator.text in DESCRIPTORS:
                 self.sink.error(
-                    f"@{decorator} makes {function.key} a {decorator} object; layered "
+                    f"@{decorator.text} makes {function.key} a {decorator.text} object; layered "
                     "implementations must stay plain functions",
                     function.at.line,
                     function.at.col,
+                )
+            else:
+                # Whatever a decorator returns (functools.cache: a cache object; a wrapper:
+                # a function whose body is not the one calling proceed) would be layered
+                # in place of the implementation; the checker cannot know it is a plain
+                # function, so none is accepted.
+                self.sink.error(
+                    f"decorators are not supported on implementations: @{decorator.text} "
+                    f"would replace {function.key} by what it returns, and the core layers "
+                    "only the plain function; decorate a helper in the header and call it "
+                    "from the body",
+                    decorator.at.line,
+                    decorator.at.col,
                 )
 
     def _compatible(self, first: Function, other: Function) -> None:

@@ -10,7 +10,14 @@ from __future__ import annotations
 import ast
 from dataclasses import dataclass
 
-from contextros.language.syntax import Function, Position, ProceedCall, Signature, SourceLine
+from contextros.language.syntax import (
+    Decorator,
+    Function,
+    Position,
+    ProceedCall,
+    Signature,
+    SourceLine,
+)
 
 
 @dataclass
@@ -45,7 +52,9 @@ def python_function(
             isinstance(node, ast.AsyncFunctionDef),
         ),
         proceed_calls=_proceed_calls(node, lines, first[0].arg if first else None),
-        decorators=tuple(d.id for d in node.decorator_list if isinstance(d, ast.Name)),
+        decorators=tuple(
+            Decorator(ast.unparse(d), _position(d, lines)) for d in node.decorator_list
+        ),
         takes_instance=bool(args.posonlyargs or args.args or args.vararg),
         instance_name=first[0].arg if first else "self",
         node=node,
@@ -89,11 +98,15 @@ def _proceed_calls(
         passes = isinstance(first, ast.Starred) or (
             isinstance(first, ast.Name) and first.id == instance
         )
-        index = min(max(call.lineno, 1), len(lines)) - 1
-        line = lines[index]
-        col = line.char_column(line.char_of_byte(call.col_offset))
-        calls.append(ProceedCall(Position(line.line, col + 1), passes))
+        calls.append(ProceedCall(_position(call, lines), passes))
     return tuple(calls)
+
+
+def _position(node: ast.expr, lines: list[SourceLine]) -> Position:
+    """Where `node` of an implementation's parsed lines is in the layer file."""
+    index = min(max(node.lineno, 1), len(lines)) - 1
+    line = lines[index]
+    return Position(line.line, line.char_column(line.char_of_byte(node.col_offset)) + 1)
 
 
 def header_names(module: ast.Module | None) -> tuple[set[str], bool]:

@@ -102,6 +102,14 @@ class ProceedCall:
     passes_instance: bool = True
 
 
+@dataclass(frozen=True)
+class Decorator:
+    """A decorator on an implementation (Python): its expression as written, and where."""
+
+    text: str
+    at: Position
+
+
 @dataclass
 class Function:
     """A method implementation: in a layer (a partial) or in the base block.
@@ -118,7 +126,7 @@ class Function:
     generated_name: str
     signature: Signature
     proceed_calls: tuple[ProceedCall, ...] = ()
-    decorators: tuple[str, ...] = ()
+    decorators: tuple[Decorator, ...] = ()
     takes_instance: bool = True
     instance_name: str = "self"
 

@@ -10,11 +10,14 @@ from __future__ import annotations
 import inspect
 import linecache
 from collections.abc import Callable
-from types import FunctionType
+from types import FunctionType, MethodDescriptorType, WrapperDescriptorType
 from typing import Any, cast
 
 from contextros.core import layered, layered_function_of
 from contextros.language.diagnostics import Diagnostic, LayerTargetError, Severity
+
+# Methods of built-in classes, which a class written in Python inherits as they are.
+_BUILTIN_METHODS = (WrapperDescriptorType, MethodDescriptorType)
 
 
 def layered_method(
@@ -28,7 +31,8 @@ def layered_method(
     - `base` given (the file's `base:` block): it becomes the base, replacing a plain
       function the class had; a method that is already layered keeps its own base, so
       giving another one is an error.
-    - no `base`: the class's method (own or inherited) is the base; a class without
+    - no `base`: the class's method (own or inherited) is the base; one inherited from a
+      built-in class (`object.__init__`) is reached through `super()`; a class without
       one gets a layered method with no base.
     """
     if not isinstance(cls, type):
@@ -47,6 +51,10 @@ def layered_method(
         if name not in vars(cls):
             setattr(cls, name, existing)
         return existing  # type: ignore[no-any-return]
+    if isinstance(existing, _BUILTIN_METHODS) and name not in vars(cls):
+        # Inherited from a built-in class (`object.__init__`, `dict.get`): a plain function
+        # that calls it the way the class would, through super(), becomes the base.
+        existing = _inherited(cls, name)
     if existing is not None and not isinstance(existing, FunctionType):
         _fail(
             f"{cls.__qualname__}.{name} is {type(existing).__name__!r}, not a plain function; "
@@ -62,6 +70,17 @@ def layered_method(
         dispatch = layered(base=False)(_stub(cls, name))
     setattr(cls, name, dispatch)
     return dispatch
+
+
+def _inherited(cls: type, name: str) -> FunctionType:
+    def inherited(self: Any, *args: Any, **kwargs: Any) -> Any:
+        """The method the class inherits from a built-in class."""
+        return getattr(super(cls, self), name)(*args, **kwargs)
+
+    inherited.__name__ = name
+    inherited.__qualname__ = f"{cls.__qualname__}.{name}"
+    inherited.__module__ = cls.__module__
+    return cast(FunctionType, inherited)
 
 
 def _stub(cls: type, name: str) -> FunctionType:
