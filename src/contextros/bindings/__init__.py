@@ -14,8 +14,8 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
 from contextros.language.bindings import LifecycleBinding, ParameterBinding, ParameterValue
-from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
-from contextros.language.flavours import parse_with_diagnostics, read_source
+from contextros.language.diagnostics import LayerSyntaxError
+from contextros.language.flavours import parse_files
 
 ParameterKey = tuple[str, str]  # (node, parameter), the node name resolved
 # From a declared node name to the fully qualified one (relative names: the manager's namespace).
@@ -74,18 +74,8 @@ class Bindings:
     ) -> Bindings:
         parameters: list[ParameterBinding] = []
         lifecycles: list[LifecycleBinding] = []
-        errors: list[Diagnostic] = []
-        for path in paths:
-            name = os.fspath(path)
-            try:
-                source = read_source(name)
-            except (OSError, UnicodeDecodeError) as error:
-                sink = DiagnosticSink(name, "")
-                sink.error(f"cannot read the layer file: {error}", 1, 1)
-                errors += sink.items
-                continue
-            layer_file, found = parse_with_diagnostics(source, name, language)
-            errors += [d for d in found if d.is_error]
+        parsed, errors = parse_files(paths, language)
+        for _, _, layer_file in parsed:
             parameters += layer_file.parameters
             lifecycles += layer_file.lifecycles
         if errors:

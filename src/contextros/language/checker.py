@@ -21,7 +21,7 @@ from contextros.language.diagnostics import (
     LayerSyntaxError,
     sorted_diagnostics,
 )
-from contextros.language.flavours import parse_with_diagnostics, read_source
+from contextros.language.flavours import parse_with_diagnostics, read_source, unreadable
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Position, Ref
 
 # Names the compiled module defines besides the generated functions and the layers
@@ -80,9 +80,7 @@ def check_file(path: str | Path, language: str | None = None) -> list[Diagnostic
     try:
         source = read_source(path)
     except (OSError, UnicodeDecodeError) as error:
-        sink = DiagnosticSink(str(path), "")
-        sink.error(f"cannot read the layer file: {error}", 1, 1)
-        return sink.items
+        return unreadable(path, error)
     return check_source(source, str(path), language)
 
 

@@ -8,8 +8,9 @@ C++, `NAME.layers` and `NAME.py.layers` are Python (`--language` overrides).
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 
-from contextros.language.diagnostics import Diagnostic
+from contextros.language.diagnostics import Diagnostic, DiagnosticSink
 from contextros.language.syntax import LayerFile
 
 LANGUAGES = ("python", "cpp")
@@ -42,6 +43,13 @@ def read_source(path: str | os.PathLike[str]) -> str:
         return decode_source(stream.read())
 
 
+def unreadable(path: str | os.PathLike[str], error: Exception) -> list[Diagnostic]:
+    """The error for a layer file that cannot be read, located at 1:1."""
+    sink = DiagnosticSink(os.fspath(path), "")
+    sink.error(f"cannot read the layer file: {error}", 1, 1)
+    return sink.items
+
+
 def stem_of(path: str | os.PathLike[str]) -> str:
     """The name of a layer file without `.layers` and its flavour's suffix: `robot` for
     `robot.layers`, `robot.py.layers` and `robot.cpp.layers`; what outputs are named after
@@ -68,3 +76,23 @@ def parse_with_diagnostics(
     from contextros.language.parser import parse_with_diagnostics as parse_python
 
     return parse_python(source, path)
+
+
+def parse_files(
+    paths: Iterable[str | os.PathLike[str]], language: str | None = None
+) -> tuple[list[tuple[str, str, LayerFile]], list[Diagnostic]]:
+    """Read and parse layer files, each in its flavour: (name, source, syntax tree) of each
+    file read, and the errors (a file that cannot be read is one, located at 1:1)."""
+    parsed: list[tuple[str, str, LayerFile]] = []
+    errors: list[Diagnostic] = []
+    for path in paths:
+        name = os.fspath(path)
+        try:
+            source = read_source(name)
+        except (OSError, UnicodeDecodeError) as error:
+            errors += unreadable(name, error)
+            continue
+        layer_file, found = parse_with_diagnostics(source, name, language)
+        errors += [d for d in found if d.is_error]
+        parsed.append((name, source, layer_file))
+    return parsed, errors

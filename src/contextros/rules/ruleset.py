@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
-from contextros.language.flavours import parse_with_diagnostics, read_source
+from contextros.language.flavours import parse_files
 from contextros.language.rules import (
     BoolOp,
     Comparison,
@@ -54,18 +54,8 @@ class RuleSet:
         """The rules of layer files (either flavour); LayerSyntaxError lists every error."""
         rules: list[RuleDecl] = []
         sources: dict[str, str] = {}
-        errors: list[Diagnostic] = []
-        for path in paths:
-            name = os.fspath(path)
-            try:
-                source = read_source(name)
-            except (OSError, UnicodeDecodeError) as error:
-                sink = DiagnosticSink(name, "")
-                sink.error(f"cannot read the layer file: {error}", 1, 1)
-                errors += sink.items
-                continue
-            layer_file, found = parse_with_diagnostics(source, name, language)
-            errors += [d for d in found if d.is_error]
+        parsed, errors = parse_files(paths, language)
+        for name, source, layer_file in parsed:
             rules += layer_file.rules
             sources[name] = source
         result = cls(rules, sources)
