@@ -640,6 +640,19 @@ SharedParticipant& shared() {
   return instance;
 }
 
+// A listener or veto joins the process (kept for a successor after a hand-over) and its
+// participant, if it has one.
+template <typename Handler>
+void add_to_process(std::vector<Handler> SharedParticipant::*kept,
+                    void (Participant::*add)(Handler), Handler handler) {
+  SharedParticipant& process = shared();
+  std::lock_guard<std::mutex> lock(process.mutex);
+  (process.*kept).push_back(handler);
+  if (process.participant) {
+    ((*process.participant).*add)(std::move(handler));
+  }
+}
+
 }  // namespace
 
 ContextNode::ContextNode(rcl_node_t& node, ParticipantOptions options) : node_(&node) {
@@ -699,30 +712,16 @@ ContextNode::~ContextNode() {
 }
 
 void ContextNode::add_listener(StateListener listener) {
-  SharedParticipant& process = shared();
-  std::lock_guard<std::mutex> lock(process.mutex);
-  process.listeners.push_back(listener);
-  if (process.participant) {
-    process.participant->add_listener(std::move(listener));
-  }
+  add_to_process(&SharedParticipant::listeners, &Participant::add_listener, std::move(listener));
 }
 
 void ContextNode::add_manager_listener(ManagerListener listener) {
-  SharedParticipant& process = shared();
-  std::lock_guard<std::mutex> lock(process.mutex);
-  process.manager_listeners.push_back(listener);
-  if (process.participant) {
-    process.participant->add_manager_listener(std::move(listener));
-  }
+  add_to_process(&SharedParticipant::manager_listeners, &Participant::add_manager_listener,
+                 std::move(listener));
 }
 
 void ContextNode::add_veto(Veto veto) {
-  SharedParticipant& process = shared();
-  std::lock_guard<std::mutex> lock(process.mutex);
-  process.vetoes.push_back(veto);
-  if (process.participant) {
-    process.participant->add_veto(std::move(veto));
-  }
+  add_to_process(&SharedParticipant::vetoes, &Participant::add_veto, std::move(veto));
 }
 
 std::string ContextNode::carrier() {
