@@ -28,33 +28,34 @@ namespace msg = contextros_interfaces::msg;
 
 // -- QoS (docs/protocol.md) ---------------------------------------------------------------
 
-rmw_qos_profile_t state_qos() {
+namespace {
+
+rmw_qos_profile_t keep_last(std::size_t depth, rmw_qos_reliability_policy_t reliability,
+                            rmw_qos_durability_policy_t durability) {
   rmw_qos_profile_t qos = rmw_qos_profile_default;
   qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
-  qos.depth = 1;
-  qos.reliability = RMW_QOS_POLICY_RELIABILITY_RELIABLE;
-  qos.durability = RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL;
+  qos.depth = depth;
+  qos.reliability = reliability;
+  qos.durability = durability;
   return qos;
 }
 
+}  // namespace
+
+rmw_qos_profile_t state_qos() {
+  return keep_last(1, RMW_QOS_POLICY_RELIABILITY_RELIABLE,
+                   RMW_QOS_POLICY_DURABILITY_TRANSIENT_LOCAL);
+}
+
 rmw_qos_profile_t heartbeat_qos() {
-  rmw_qos_profile_t qos = rmw_qos_profile_default;
-  qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
-  qos.depth = 1;
-  qos.reliability = RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT;
-  qos.durability = RMW_QOS_POLICY_DURABILITY_VOLATILE;
-  return qos;
+  return keep_last(1, RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT, RMW_QOS_POLICY_DURABILITY_VOLATILE);
 }
 
 rmw_qos_profile_t proposal_qos() { return heartbeat_qos(); }
 
 rmw_qos_profile_t status_qos() {
-  rmw_qos_profile_t qos = rmw_qos_profile_default;
-  qos.history = RMW_QOS_POLICY_HISTORY_KEEP_LAST;
-  qos.depth = 100;
-  qos.reliability = RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT;
-  qos.durability = RMW_QOS_POLICY_DURABILITY_VOLATILE;
-  return qos;
+  return keep_last(100, RMW_QOS_POLICY_RELIABILITY_BEST_EFFORT,
+                   RMW_QOS_POLICY_DURABILITY_VOLATILE);
 }
 
 namespace {
