@@ -13,8 +13,8 @@ all: test
 # The package, its dev tools and the ROS 2 wheels, in an editable install.
 $(VENV)/.stamp-base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[dev,ros,ros-build]'
+	$(PY) -m pip install --quiet --upgrade pip 'scikit-build-core>=0.11,<2'
+	$(PY) -m pip install --quiet --no-build-isolation -e '.[dev,ros,ros-build]'
 	touch $@
 
 # cmake and ninja: the machine's, else the package index's, into the venv (on PATH below).

@@ -7,6 +7,7 @@ from collections.abc import Iterator
 import pytest
 
 from contextros.core.runtime import RUNTIME
+from tests.ros.processes import ProcessGroup
 
 
 @pytest.fixture(autouse=True)
@@ -14,3 +15,13 @@ def fresh_runtime() -> Iterator[None]:
     RUNTIME.reset()
     yield
     RUNTIME.reset()
+
+
+@pytest.fixture
+def processes() -> Iterator[ProcessGroup]:
+    """Child processes started by one test, all killed when it ends (tests/ros, tests/install)."""
+    group = ProcessGroup()
+    try:
+        yield group
+    finally:
+        group.kill_all()

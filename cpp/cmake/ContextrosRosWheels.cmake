@@ -1,12 +1,16 @@
-# Finding ROS 2 in a Python venv that holds the pip wheels (no system ROS 2), for
-# cpp/CMakeLists.txt. Everything specific to the wheels is here; with a system ROS 2
-# (colcon, ament_cmake) this file is not included and plain find_package() calls do the job.
+# ROS 2 from the pip wheels (no system ROS 2): finding it and repairing the wheels' defects.
+# Used when ContextROS itself is built (cpp/CMakeLists.txt, the wheel's build, colcon over a
+# venv) and, installed beside contextrosConfig.cmake, when a robot's project finds ContextROS.
+# With a system ROS 2 none of this is used: plain find_package() calls do the job.
 #
-# Input: CONTEXTROS_ROS_WHEELS, the venv (absolute). Output: the imported targets of rcl,
-# rcutils, rmw and contextros_interfaces as find_package() gives them, repaired, and
-# contextros_use_ros_wheels(<target>) to call on every executable that runs rcl.
+# Input: CONTEXTROS_ROS_WHEELS, the prefix the wheels installed into (a venv, or pip's build
+# environment); CONTEXTROS_PYTHON, the interpreter that has them (default
+# <prefix>/bin/python). Output: rcl, rcutils, rmw and rosidl_typesupport_cpp found and
+# repaired; contextros_repair_wheel_targets() for packages found later;
+# contextros_ros_wheels_link_interface(<target> <INTERFACE|PRIVATE>) for the link options a
+# program that runs rcl needs.
 #
-# The pitfalls worked around (../shared/notes/cpp-on-wheels.md, each seen here):
+# The pitfalls worked around (docs/cpp.md, each seen here):
 #  1. The typesupport lookup reads the ament index from the *environment* at configure time.
 #  2. The wheels' rmw_implementation is built for Fast DDS only.
 #  3. `<pkg>__rosidl_generator_py` targets carry the wheel builder's include directories.
@@ -17,56 +21,27 @@
 #  7. The exported link interfaces list about 60 libraries.
 include_guard(GLOBAL)
 
-if(NOT IS_ABSOLUTE "${CONTEXTROS_ROS_WHEELS}" OR NOT EXISTS "${CONTEXTROS_ROS_WHEELS}/bin/python")
-  message(FATAL_ERROR
-    "CONTEXTROS_ROS_WHEELS='${CONTEXTROS_ROS_WHEELS}' is not a venv with the ROS 2 wheels "
-    "(expected <venv>/bin/python; `make venv` creates one)")
-endif()
-set(_wheels "${CONTEXTROS_ROS_WHEELS}")
+# contextros_detect_ros_wheels(<out>): the first prefix of CMAKE_PREFIX_PATH or
+# AMENT_PREFIX_PATH that holds the ROS 2 wheels (their bootstrapper package), else "".
+function(contextros_detect_ros_wheels out)
+  set(_prefixes ${CMAKE_PREFIX_PATH})
+  if(DEFINED ENV{AMENT_PREFIX_PATH})
+    string(REPLACE ":" ";" _ament "$ENV{AMENT_PREFIX_PATH}")
+    list(APPEND _prefixes ${_ament})
+  endif()
+  foreach(_prefix IN LISTS _prefixes)
+    file(GLOB _bootstrapper "${_prefix}/lib/python3*/site-packages/ros_wheels_bootstrapper")
+    if(_bootstrapper)
+      set(${out} "${_prefix}" PARENT_SCOPE)
+      return()
+    endif()
+  endforeach()
+  set(${out} "" PARENT_SCOPE)
+endfunction()
 
-# 1 and 2: set here rather than by the caller, so that ninja's automatic re-configure (which
-# does not see the Makefile's environment) behaves like the first configure.
-set(ENV{AMENT_PREFIX_PATH} "${_wheels}")
-unset(ENV{RMW_IMPLEMENTATION})
-list(PREPEND CMAKE_PREFIX_PATH "${_wheels}")
-set(Python3_EXECUTABLE "${_wheels}/bin/python" CACHE FILEPATH "the venv's interpreter" FORCE)
-
-# The venv's interpreter tells where its libpython and the wheels' bundled libraries are.
-execute_process(
-  COMMAND "${_wheels}/bin/python" -c [=[
-import glob, os, site, sysconfig
-libdir = sysconfig.get_config_var("LIBDIR")
-library = os.path.join(libdir, sysconfig.get_config_var("LDLIBRARY"))
-bundled = sorted(d for p in site.getsitepackages() for d in glob.glob(os.path.join(p, "ros_*.libs")))
-print(library + "|" + ";".join(bundled), end="")
-]=]
-  OUTPUT_VARIABLE _probe
-  RESULT_VARIABLE _probe_result)
-if(NOT _probe_result EQUAL 0)
-  message(FATAL_ERROR "contextros: cannot ask ${_wheels}/bin/python about its libraries")
-endif()
-string(REPLACE "|" ";" _probe "${_probe}")
-list(POP_FRONT _probe _libpython)
-# Cache (internal) variables: contextros_use_ros_wheels() is also called from a robot's own
-# project that added cpp/ with add_subdirectory (a parent scope).
-set(CONTEXTROS_LIBPYTHON "${_libpython}" CACHE INTERNAL "the venv's libpython")
-set(CONTEXTROS_WHEEL_LIBRARY_DIRS "${_probe}" CACHE INTERNAL "the wheels' bundled libraries")
-if(NOT EXISTS "${CONTEXTROS_LIBPYTHON}")
-  message(FATAL_ERROR "contextros: the venv's Python has no shared libpython (${CONTEXTROS_LIBPYTHON}); "
-    "rcl from the wheels needs it (pitfall 6 in docs/cpp.md)")
-endif()
-
-find_package(rcutils REQUIRED)
-find_package(rmw REQUIRED)
-find_package(rcl REQUIRED)
-find_package(rosidl_typesupport_cpp REQUIRED)
-find_package(contextros_interfaces REQUIRED)
-# The messages of the example nodes (examples/cleaner/cpp).
-find_package(sensor_msgs REQUIRED)
-find_package(geometry_msgs REQUIRED)
-
-# 3 and 4: repair every imported target now that find_package has made them.
-function(_contextros_repair_wheel_targets)
+# 3 and 4: repair the imported targets of this directory (call again after more
+# find_package calls; it is also deferred to the end of the directory's configure).
+function(contextros_repair_wheel_targets)
   get_property(_targets DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}" PROPERTY IMPORTED_TARGETS)
   foreach(_target IN LISTS _targets)
     if(_target MATCHES "__rosidl_generator_py$")
@@ -80,21 +55,97 @@ function(_contextros_repair_wheel_targets)
     endif()
   endforeach()
 endfunction()
-_contextros_repair_wheel_targets()
 
-# 5, 6 and 7, for every executable (or shared library) that uses rcl.
-function(contextros_use_ros_wheels target)
-  set(_options "LINKER:--as-needed" "LINKER:--disable-new-dtags")
-  foreach(_dir IN LISTS CONTEXTROS_WHEEL_LIBRARY_DIRS)
-    list(APPEND _options "LINKER:-rpath-link,${_dir}")
-  endforeach()
+# 5, 6 and 7: what a program (or shared library) that runs rcl needs at link time, as
+# <scope> (INTERFACE: for whoever links <target>) link options and libraries of <target>.
+function(contextros_ros_wheels_link_interface target scope)
+  set(_dirs "${CONTEXTROS_WHEELS_PREFIX}/lib" ${CONTEXTROS_WHEEL_LIBRARY_DIRS})
   get_filename_component(_libpython_dir "${CONTEXTROS_LIBPYTHON}" DIRECTORY)
-  # An RPATH (not RUNPATH: --disable-new-dtags) also serves the wheels' own libraries.
-  set_target_properties(${target} PROPERTIES
-    BUILD_RPATH "${CONTEXTROS_ROS_WHEELS}/lib;${CONTEXTROS_WHEEL_LIBRARY_DIRS};${_libpython_dir}"
-    INSTALL_RPATH "${CONTEXTROS_ROS_WHEELS}/lib;${CONTEXTROS_WHEEL_LIBRARY_DIRS};${_libpython_dir}")
-  target_link_options(${target} PRIVATE ${_options})
+  list(APPEND _dirs "${_libpython_dir}")
+  set(_options "LINKER:--as-needed" "LINKER:--disable-new-dtags")
+  foreach(_dir IN LISTS _dirs)
+    list(APPEND _options "LINKER:-rpath-link,${_dir}")
+    if(scope STREQUAL "INTERFACE")
+      # An RPATH (not RUNPATH: --disable-new-dtags) also serves the wheels' own libraries.
+      list(APPEND _options "LINKER:-rpath,${_dir}")
+    endif()
+  endforeach()
+  if(NOT scope STREQUAL "INTERFACE")
+    # <target> itself: these paths while in the build tree, its INSTALL_RPATH once installed.
+    set_property(TARGET ${target} APPEND PROPERTY BUILD_RPATH ${_dirs})
+  endif()
   # libpython is NEEDED by no object of ours, only by the wheels' helpers: keep it anyway.
-  target_link_libraries(${target} PRIVATE
-    "-Wl,--push-state,--no-as-needed" "${CONTEXTROS_LIBPYTHON}" "-Wl,--pop-state")
+  set(_libraries "-Wl,--push-state,--no-as-needed" "${CONTEXTROS_LIBPYTHON}" "-Wl,--pop-state")
+  get_target_property(_imported ${target} IMPORTED)
+  if(scope STREQUAL "INTERFACE" AND NOT _imported)
+    # These paths are this build's: an installed target gets the consumer's own
+    # (contextrosConfig.cmake calls this on the imported target).
+    list(TRANSFORM _options PREPEND "$<BUILD_INTERFACE:")
+    list(TRANSFORM _options APPEND ">")
+    list(TRANSFORM _libraries PREPEND "$<BUILD_INTERFACE:")
+    list(TRANSFORM _libraries APPEND ">")
+  endif()
+  target_link_options(${target} ${scope} ${_options})
+  target_link_libraries(${target} ${scope} ${_libraries})
 endfunction()
+
+# contextros_find_ros_wheels(): finds rcl, rcutils, rmw and rosidl_typesupport_cpp in the
+# wheels of CONTEXTROS_ROS_WHEELS and repairs them (a macro: what it finds and sets is the
+# caller's).
+macro(contextros_find_ros_wheels)
+  if(NOT IS_ABSOLUTE "${CONTEXTROS_ROS_WHEELS}" OR NOT EXISTS "${CONTEXTROS_ROS_WHEELS}/share/rcl")
+    message(FATAL_ERROR
+      "CONTEXTROS_ROS_WHEELS='${CONTEXTROS_ROS_WHEELS}' does not hold the ROS 2 wheels "
+      "(no share/rcl there; `pip install 'contextros[ros]'` into that venv installs them)")
+  endif()
+  set(_wheels "${CONTEXTROS_ROS_WHEELS}")
+  if(NOT CONTEXTROS_PYTHON)
+    if(EXISTS "${_wheels}/bin/python")
+      set(CONTEXTROS_PYTHON "${_wheels}/bin/python")
+    elseif(Python3_EXECUTABLE)
+      set(CONTEXTROS_PYTHON "${Python3_EXECUTABLE}")
+    else()
+      message(FATAL_ERROR "contextros: no Python interpreter for the wheels in ${_wheels} "
+        "(set CONTEXTROS_PYTHON)")
+    endif()
+  endif()
+
+  # 1 and 2: set here rather than by the caller, so that ninja's automatic re-configure (which
+  # does not see the caller's environment) behaves like the first configure.
+  set(ENV{AMENT_PREFIX_PATH} "${_wheels}")
+  unset(ENV{RMW_IMPLEMENTATION})
+  list(APPEND CMAKE_PREFIX_PATH "${_wheels}")
+  set(Python3_EXECUTABLE "${CONTEXTROS_PYTHON}" CACHE FILEPATH "the interpreter of the ROS wheels")
+
+  # Where the interpreter's libpython is and where the wheels bundle their own libraries.
+  execute_process(
+    COMMAND "${CONTEXTROS_PYTHON}" -c [=[
+import glob, os, sys, sysconfig
+libdir = sysconfig.get_config_var("LIBDIR")
+library = os.path.join(libdir, sysconfig.get_config_var("LDLIBRARY"))
+bundled = sorted(glob.glob(os.path.join(sys.argv[1], "lib", "python3*", "site-packages", "ros_*.libs")))
+print(library + "|" + ";".join(bundled), end="")
+  ]=] "${_wheels}"
+    OUTPUT_VARIABLE _probe
+    RESULT_VARIABLE _probe_result)
+  if(NOT _probe_result EQUAL 0)
+    message(FATAL_ERROR "contextros: cannot ask ${CONTEXTROS_PYTHON} about its libraries")
+  endif()
+  string(REPLACE "|" ";" _probe "${_probe}")
+  list(POP_FRONT _probe _libpython)
+  # Cache (internal) variables: the functions below are also called from other directories.
+  set(CONTEXTROS_LIBPYTHON "${_libpython}" CACHE INTERNAL "the wheels' interpreter's libpython")
+  set(CONTEXTROS_WHEEL_LIBRARY_DIRS "${_probe}" CACHE INTERNAL "the wheels' bundled libraries")
+  set(CONTEXTROS_WHEELS_PREFIX "${_wheels}" CACHE INTERNAL "the prefix of the ROS wheels")
+  if(NOT EXISTS "${CONTEXTROS_LIBPYTHON}")
+    message(FATAL_ERROR "contextros: ${CONTEXTROS_PYTHON} has no shared libpython "
+      "(${CONTEXTROS_LIBPYTHON}); rcl from the wheels needs it (pitfall 6 in docs/cpp.md)")
+  endif()
+
+  find_package(rcutils REQUIRED)
+  find_package(rmw REQUIRED)
+  find_package(rcl REQUIRED)
+  find_package(rosidl_typesupport_cpp REQUIRED)
+  contextros_repair_wheel_targets()
+  cmake_language(DEFER DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}" CALL contextros_repair_wheel_targets)
+endmacro()

@@ -18,7 +18,7 @@ import pytest
 pytest.importorskip("rclpy")
 pytest.importorskip("contextros_interfaces", reason="run `make ros` to build the interfaces")
 
-from tests.ros.processes import ProcessGroup, reserve_domain_id
+from tests.ros.processes import reserve_domain_id
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -35,16 +35,6 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     for item in items:
         if "tests/ros/" in str(item.path).replace(os.sep, "/"):
             item.add_marker(pytest.mark.ros)
-
-
-@pytest.fixture
-def processes() -> Iterator[ProcessGroup]:
-    """Child processes started by one test, all killed when it ends."""
-    group = ProcessGroup()
-    try:
-        yield group
-    finally:
-        group.kill_all()
 
 
 @pytest.fixture(scope="module")

@@ -3,12 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 
 from contextros import __version__
 from contextros.cli import language_commands, ros_commands
 from contextros.cli.ros_arguments import split_ros_arguments
+from contextros.cli.ros_commands import USAGE
+from contextros.ros.availability import ros_problem
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -18,9 +22,18 @@ def build_parser() -> argparse.ArgumentParser:
         "run the Layer manager, switch layers across nodes.",
     )
     parser.add_argument("--version", action="version", version=f"contextros {__version__}")
+    parser.add_argument(
+        "--cmake-prefix",
+        action="store_true",
+        help="print the prefix holding ContextROS's CMake package, for a C++ project's "
+        "CMAKE_PREFIX_PATH (find_package(contextros CONFIG REQUIRED))",
+    )
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     language_commands.register(commands)
+    offline = set(commands.choices)
     ros_commands.register(commands)
+    for name in set(commands.choices) - offline:  # checked before they run: see main
+        commands.choices[name].set_defaults(needs_ros=True)
     return parser
 
 
@@ -30,11 +43,43 @@ def main(argv: Sequence[str] | None = None) -> int:
     own, ros_arguments = split_ros_arguments(sys.argv[1:] if argv is None else argv)
     args = parser.parse_args(own)
     args.ros_arguments = ros_arguments
+    if args.cmake_prefix:
+        return _print_cmake_prefix()
     if args.command is None:
         parser.print_help()
         return 0
+    if getattr(args, "needs_ros", False) and (problem := ros_problem()):
+        print(f"contextros {args.command}: {problem}", file=sys.stderr)
+        return USAGE
     status: int = args.run(args)
     return status
+
+
+def cmake_package_prefixes() -> list[Path]:
+    """The prefixes that hold an installed `contextros` CMake package: this Python's (the
+    wheel installs it there), then those of CMAKE_PREFIX_PATH and AMENT_PREFIX_PATH
+    (colcon)."""
+    candidates = [Path(sys.prefix)]
+    for variable in ("CMAKE_PREFIX_PATH", "AMENT_PREFIX_PATH"):
+        candidates += [
+            Path(entry) for entry in os.environ.get(variable, "").split(os.pathsep) if entry
+        ]
+    config = Path("share", "contextros", "cmake", "contextrosConfig.cmake")
+    return [prefix for prefix in dict.fromkeys(candidates) if (prefix / config).is_file()]
+
+
+def _print_cmake_prefix() -> int:
+    prefixes = cmake_package_prefixes()
+    if not prefixes:
+        print(
+            f"contextros: no installed C++ package (share/contextros/cmake) in {sys.prefix} or "
+            "CMAKE_PREFIX_PATH/AMENT_PREFIX_PATH; it comes with the contextros wheel or a "
+            "colcon build of cpp/ (see docs/install.md)",
+            file=sys.stderr,
+        )
+        return USAGE
+    print(prefixes[0])
+    return 0
 
 
 if __name__ == "__main__":

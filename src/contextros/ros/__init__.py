@@ -8,9 +8,10 @@ imports the client, not the manager and the participant.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from contextros import _lazy_exports
+from contextros.ros.availability import RosUnavailableError, ros_problem
 
 if TYPE_CHECKING:
     from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
@@ -47,7 +48,15 @@ _LAZY = {
 }
 
 
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY, globals())
+_lazy_getattr, __dir__ = _lazy_exports(__name__, _LAZY, globals())
+
+
+def __getattr__(name: str) -> Any:
+    try:
+        return _lazy_getattr(name)
+    except ImportError as error:
+        problem = ros_problem()
+        raise RosUnavailableError(problem or str(error)) from error
 
 
 __all__ = [
@@ -64,6 +73,7 @@ __all__ = [
     "LayerClient",
     "LayerManagerNode",
     "ManagerError",
+    "RosUnavailableError",
     "StateFile",
     "declaration_of",
     "spin_nodes",

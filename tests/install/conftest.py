@@ -1,0 +1,187 @@
+"""ContextROS as a user installs it, outside the clone: the wheel built from this checkout
+(reused while its inputs are unchanged), a fresh venv holding only it and the ROS wheels,
+and a C++ project of the user's that finds the installed CMake package.
+
+The builds are cached under build/install/ keyed by a hash of what goes into them, so only
+the first run of a checkout (or one after a change to the package) pays for them.
+"""
+
+from __future__ import annotations
+
+import fcntl
+import hashlib
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator, Mapping
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+from tests.ros.processes import reserve_domain_id
+
+REPOSITORY = Path(__file__).resolve().parents[2]
+CACHE = REPOSITORY / "build" / "install"
+# What the wheel is built from.
+WHEEL_INPUTS = ("CMakeLists.txt", "pyproject.toml", "src/contextros", "cpp", "interfaces")
+# The packages a C++ user adds to find_package() ROS 2 from the wheels (the `cpp` extra).
+EXTRAS = "ros,cpp"
+
+_worker = int(os.environ.get("PYTEST_XDIST_WORKER", "gw0").removeprefix("gw") or 0)
+DOMAIN_ID = reserve_domain_id(90 + _worker)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    for item in items:
+        if "tests/install/" in str(item.path).replace(os.sep, "/"):
+            item.add_marker(pytest.mark.ros)
+
+
+def inputs_hash(paths: tuple[str, ...]) -> str:
+    """A hash of the files under `paths` (tracked or not, minus what git ignores)."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-co", "--exclude-standard", "--", *paths],
+        cwd=REPOSITORY,
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    digest = hashlib.sha256()
+    for name in sorted(listed):
+        file = REPOSITORY / name
+        if file.is_file():
+            digest.update(name.encode() + b"\0" + file.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
+
+
+def user_environment(venv: Path | None = None, **extra: str) -> dict[str, str]:
+    """A user's shell: nothing of this checkout's venv, build or ROS set-up leaks in."""
+    leaks = (
+        "PYTHONPATH",
+        "PYTHONHOME",
+        "VIRTUAL_ENV",
+        "LD_LIBRARY_PATH",
+        "AMENT_PREFIX_PATH",
+        "CMAKE_PREFIX_PATH",
+        "COLCON_PREFIX_PATH",
+        "RMW_IMPLEMENTATION",
+        "_ROS_WHEELS_BOOTSTRAP_COMPLETE",
+    )
+    environment = {k: v for k, v in os.environ.items() if k not in leaks}
+    path = ["/usr/local/bin", "/usr/bin", "/bin"]
+    if venv is not None:
+        path.insert(0, str(venv / "bin"))
+    if not shutil.which("cmake", path=os.pathsep.join(path)):  # the Makefile's fallback
+        path.append(str(Path(sys.executable).parent))
+    environment.update(
+        PATH=os.pathsep.join(path),
+        ROS_DOMAIN_ID=str(DOMAIN_ID),
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+        **extra,
+    )
+    return environment
+
+
+def run(argv: list[str], *, env: Mapping[str, str], cwd: Path, what: str) -> str:
+    done = subprocess.run(argv, env=dict(env), cwd=cwd, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise AssertionError(
+            f"{what} failed ({done.returncode}): {' '.join(argv)}\n{done.stdout[-3000:]}"
+            f"\n{done.stderr[-3000:]}"
+        )
+    return done.stdout
+
+
+@contextmanager
+def exclusive(name: str) -> Iterator[None]:
+    """Held by one test process at a time (two xdist workers may want the same build)."""
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with open(CACHE / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        yield
+
+
+@pytest.fixture(scope="session")
+def wheel() -> Iterator[Path]:
+    """The platform wheel of this checkout, built with the dev venv's build tools."""
+    with exclusive("wheel"):
+        yield _wheel()
+
+
+def _wheel() -> Path:
+    directory = CACHE / f"wheel-{inputs_hash(WHEEL_INPUTS)}"
+    built = sorted(directory.glob("contextros-*.whl"))
+    if not built:
+        shutil.rmtree(directory, ignore_errors=True)
+        environment = dict(os.environ, PATH=f"{Path(sys.executable).parent}:{os.environ['PATH']}")
+        run(
+            [
+                sys.executable,
+                "-m",
+                "pip",
+                "wheel",
+                "--no-build-isolation",
+                "--no-deps",
+                "--quiet",
+                "--wheel-dir",
+                str(directory),
+                str(REPOSITORY),
+            ],
+            env=environment,
+            cwd=REPOSITORY,
+            what="building the wheel",
+        )
+        built = sorted(directory.glob("contextros-*.whl"))
+    assert len(built) == 1, built
+    return built[0]
+
+
+@pytest.fixture(scope="session")
+def user_venv(wheel: Path) -> Iterator[Path]:
+    """A fresh venv with only the wheel and the ROS wheels it asks for, made with the
+    machine's Python (not this venv's), as a user would."""
+    with exclusive("venv"):
+        yield _user_venv(wheel)
+
+
+def _user_venv(wheel: Path) -> Path:
+    venv = CACHE / f"venv-{wheel.parent.name.removeprefix('wheel-')}"
+    if not (venv / ".complete").exists():
+        shutil.rmtree(venv, ignore_errors=True)
+        base_python = getattr(sys, "_base_executable", sys.executable)
+        environment = user_environment()
+        run([base_python, "-m", "venv", str(venv)], env=environment, cwd=CACHE, what="venv")
+        run(
+            [str(venv / "bin" / "pip"), "install", "--quiet", f"{wheel}[{EXTRAS}]"],
+            env=environment,
+            cwd=CACHE,
+            what="pip install of the wheel",
+        )
+        (venv / ".complete").touch()
+    return venv
+
+
+@pytest.fixture(scope="session")
+def cpp_package(user_venv: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """examples/cpp_package built as a user's own CMake project against the installed wheel:
+    `find_package(contextros CONFIG REQUIRED)` with the prefix `contextros --cmake-prefix`
+    prints, nothing else."""
+    source = tmp_path_factory.mktemp("user") / "cpp_package"
+    shutil.copytree(REPOSITORY / "examples" / "cpp_package", source)
+    environment = user_environment(user_venv)
+    prefix = run(
+        ["contextros", "--cmake-prefix"], env=environment, cwd=source, what="--cmake-prefix"
+    ).strip()
+    assert Path(prefix) == user_venv
+    build = source / "build"
+    generator = ["-G", "Ninja"] if shutil.which("ninja", path=environment["PATH"]) else []
+    run(
+        ["cmake", "-S", str(source), "-B", str(build), *generator, f"-DCMAKE_PREFIX_PATH={prefix}"],
+        env=environment,
+        cwd=source,
+        what="configuring the user's C++ project",
+    )
+    run(["cmake", "--build", str(build)], env=environment, cwd=source, what="building it")
+    return build / "greeter"
