@@ -112,7 +112,12 @@ macro(contextros_find_ros_wheels)
 
   # 1 and 2: set here rather than by the caller, so that ninja's automatic re-configure (which
   # does not see the caller's environment) behaves like the first configure.
-  set(ENV{AMENT_PREFIX_PATH} "${_wheels}")
+  # (Kept: prefixes a colcon workspace put there, e.g. contextros_interfaces's install.)
+  if("$ENV{AMENT_PREFIX_PATH}" STREQUAL "")
+    set(ENV{AMENT_PREFIX_PATH} "${_wheels}")
+  elseif(NOT ":$ENV{AMENT_PREFIX_PATH}:" MATCHES ":${_wheels}:")
+    set(ENV{AMENT_PREFIX_PATH} "$ENV{AMENT_PREFIX_PATH}:${_wheels}")
+  endif()
   unset(ENV{RMW_IMPLEMENTATION})
   list(APPEND CMAKE_PREFIX_PATH "${_wheels}")
   set(Python3_EXECUTABLE "${CONTEXTROS_PYTHON}" CACHE FILEPATH "the interpreter of the ROS wheels")

