@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp demo demo-rescue test test-core bench lint clean
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-core bench lint clean
 
 all: test
 
@@ -24,14 +24,22 @@ $(VENV)/.stamp-buildtools: $(VENV)/.stamp-base
 	  || $(PY) -m pip install --quiet 'cmake>=3.22,<5' 'ninja>=1.10'
 	touch $@
 
-# The rosidl interface package, built against the wheels into the venv prefix.
-$(VENV)/.stamp-interfaces: $(VENV)/.stamp-buildtools $(shell find interfaces/contextros_interfaces interfaces/cmake -type f) interfaces/build.sh
-	$(BUILD_PATH) bash interfaces/build.sh $(abspath $(VENV))
+# The rosidl messages (and the C++ libraries), built as the wheel builds them
+# (packaging/wheel, in build/wheel, which tests/install's wheel build then reuses); the
+# messages are installed into the venv (the C++ libraries of the tests are build/cpp's).
+WHEEL_BUILD := build/wheel
+$(VENV)/.stamp-interfaces: $(VENV)/.stamp-buildtools $(shell find interfaces/contextros_interfaces interfaces/cmake packaging/wheel -type f)
+	$(BUILD_PATH) cmake -S packaging/wheel -B $(WHEEL_BUILD) -G Ninja \
+	  -DPython3_EXECUTABLE=$(abspath $(PY)) >/dev/null
+	$(BUILD_PATH) cmake --build $(WHEEL_BUILD)
+	cmake --install $(WHEEL_BUILD)/interfaces --prefix $(abspath $(VENV)) >/dev/null
+	env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE -u LD_LIBRARY_PATH $(PY) -c \
+	  "from contextros_interfaces.msg import LayerState; LayerState(epoch=1)"
 	touch $@
 
-# The C++ part (cpp/: runtime, participant, example node, tests) against the wheels.
-# Configured once; from then on ninja rebuilds what changed (and re-configures by itself
-# when a CMakeLists.txt changes).
+# The C++ part with its tests and examples (cpp/: runtime, participant, example node, tests)
+# against the wheels. Configured once; from then on ninja rebuilds what changed (and
+# re-configures by itself when a CMakeLists.txt changes). `make demo` builds only its node.
 CPP_BUILD := build/cpp
 $(CPP_BUILD)/build.ninja: $(VENV)/.stamp-interfaces
 	$(BUILD_PATH) cmake -S cpp -B $(CPP_BUILD) -G Ninja -DCONTEXTROS_ROS_WHEELS=$(abspath $(VENV))
@@ -40,10 +48,13 @@ $(CPP_BUILD)/build.ninja: $(VENV)/.stamp-interfaces
 cpp: $(CPP_BUILD)/build.ninja
 	$(BUILD_PATH) cmake --build $(CPP_BUILD) --parallel 2
 
+cpp-demo: $(CPP_BUILD)/build.ninja
+	$(BUILD_PATH) cmake --build $(CPP_BUILD) --parallel 2 --target cleaner_localization
+
 venv: $(VENV)/.stamp-base
 ros: $(VENV)/.stamp-interfaces
 
-demo: ros cpp
+demo: ros cpp-demo
 	$(PY) -m examples.demo
 
 # The rescue robot: rules, a parameter-bound layer, a lifecycle node, a namespace.

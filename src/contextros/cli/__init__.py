@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from collections.abc import Sequence
-from pathlib import Path
 
 from contextros import __version__
 from contextros.cli import language_commands, ros_commands
 from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.cli.ros_commands import USAGE
-from contextros.ros.availability import ros_problem
+from contextros.installation import cmake_package_prefixes, ros_problem
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,19 +51,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         return USAGE
     status: int = args.run(args)
     return status
-
-
-def cmake_package_prefixes() -> list[Path]:
-    """The prefixes that hold an installed `contextros` CMake package: this Python's (the
-    wheel installs it there), then those of CMAKE_PREFIX_PATH and AMENT_PREFIX_PATH
-    (colcon)."""
-    candidates = [Path(sys.prefix)]
-    for variable in ("CMAKE_PREFIX_PATH", "AMENT_PREFIX_PATH"):
-        candidates += [
-            Path(entry) for entry in os.environ.get(variable, "").split(os.pathsep) if entry
-        ]
-    config = Path("share", "contextros", "cmake", "contextrosConfig.cmake")
-    return [prefix for prefix in dict.fromkeys(candidates) if (prefix / config).is_file()]
 
 
 def _print_cmake_prefix() -> int:

@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from contextros import _lazy_exports
-from contextros.ros.availability import RosUnavailableError, ros_problem
+from contextros.installation import RosUnavailableError, ros_problem
 
 if TYPE_CHECKING:
     from contextros.protocol import ActivationFailed, ActivationResult, ManagerError

@@ -1,6 +1,7 @@
-"""Whether this Python can run the ROS 2 part, and what to install when it cannot.
+"""What of ContextROS is installed here: the ROS 2 part (rclpy and the protocol's messages)
+and the C++ package, with what to install when a piece is missing.
 
-Checked before any ROS command runs and when a ROS name is first imported from
+The ROS check runs before any ROS command and when a ROS name is first imported from
 `contextros.ros`, so a missing piece is one clear sentence instead of a traceback. Importing
 this module imports nothing of ROS.
 """
@@ -8,6 +9,9 @@ this module imports nothing of ROS.
 from __future__ import annotations
 
 import importlib
+import os
+import sys
+from pathlib import Path
 
 from contextros.errors import LayerError
 
@@ -49,3 +53,15 @@ def require_ros() -> None:
     """Raise RosUnavailableError, saying what to install, unless the ROS part can run."""
     if problem := ros_problem():
         raise RosUnavailableError(problem)
+
+
+def cmake_package_prefixes() -> list[Path]:
+    """The prefixes that hold an installed `contextros` CMake package: this Python's (the
+    wheel installs it there), then those of CMAKE_PREFIX_PATH and AMENT_PREFIX_PATH
+    (colcon)."""
+    candidates = [Path(sys.prefix)]
+    for variable in ("CMAKE_PREFIX_PATH", "AMENT_PREFIX_PATH"):
+        entries = os.environ.get(variable, "").split(os.pathsep)
+        candidates += [Path(entry) for entry in entries if entry]
+    config = Path("share", "contextros", "cmake", "contextrosConfig.cmake")
+    return [prefix for prefix in dict.fromkeys(candidates) if (prefix / config).is_file()]
