@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-core bench lint clean
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core wheel bench lint clean
 
 all: test
 
@@ -63,7 +63,15 @@ demo-rescue: ros
 
 # tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
 test: ros cpp
-	$(PY) -m pytest -n 2 -q
+	$(PY) -m pytest -n 2 -q -m "not slow"
+
+# What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).
+test-slow: ros cpp
+	$(PY) -m pytest -q -m slow
+
+# The platform wheel into dist/ (docs/install.md), from the build tree `make` keeps.
+wheel: ros
+	$(PY) -m pip wheel --quiet --no-build-isolation --no-deps --wheel-dir dist .
 
 # The ROS-free part only (fast inner loop).
 test-core: venv
@@ -82,4 +90,4 @@ lint: venv
 	$(VENV)/bin/mypy
 
 clean:
-	rm -rf $(VENV) build src/*.egg-info .pytest_cache .mypy_cache .ruff_cache
+	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .mypy_cache .ruff_cache

@@ -1,4 +1,4 @@
-# Injected with -DCMAKE_PROJECT_INCLUDE: works around a defect of the pip ROS 2 wheels.
+# Included by contextros_interfaces's CMakeLists.txt: works around a defect of the pip ROS 2 wheels.
 # Their exported `<pkg>::<pkg>__rosidl_generator_py` targets carry include directories of the
 # wheel builder's interpreter (/opt/python/cp3xx-.../include), which do not exist here, so
 # generation fails with "includes non-existent path". At the end of configure (deferred, so

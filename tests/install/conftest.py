@@ -11,6 +11,7 @@ from __future__ import annotations
 import fcntl
 import hashlib
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -20,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from contextros import __version__
 from tests.ros.processes import reserve_domain_id
 
 REPOSITORY = Path(__file__).resolve().parents[2]
@@ -56,8 +58,11 @@ def inputs_hash(paths: tuple[str, ...]) -> str:
     return digest.hexdigest()[:16]
 
 
-def user_environment(venv: Path | None = None, **extra: str) -> dict[str, str]:
-    """A user's shell: nothing of this checkout's venv, build or ROS set-up leaks in."""
+def user_environment(
+    venv: Path | None = None, *, with_python: bool = False, **extra: str
+) -> dict[str, str]:
+    """A user's shell: nothing of this checkout's venv, build or ROS set-up leaks in;
+    `with_python`: the machine's Python (this venv's base interpreter) first on PATH."""
     leaks = (
         "PYTHONPATH",
         "PYTHONHOME",
@@ -73,6 +78,8 @@ def user_environment(venv: Path | None = None, **extra: str) -> dict[str, str]:
     path = ["/usr/local/bin", "/usr/bin", "/bin"]
     if venv is not None:
         path.insert(0, str(venv / "bin"))
+    if with_python:
+        path.insert(0, str(Path(getattr(sys, "_base_executable", sys.executable)).parent))
     if not shutil.which("cmake", path=os.pathsep.join(path)):  # the Makefile's fallback
         path.append(str(Path(sys.executable).parent))
     environment.update(
@@ -138,50 +145,58 @@ def _wheel() -> Path:
     return built[0]
 
 
+def install_commands(name: str) -> str:
+    """The commands of the ```sh <name> block of docs/install.md, as a user copies them."""
+    text = (REPOSITORY / "docs" / "install.md").read_text()
+    blocks = re.findall(r"^```sh " + re.escape(name) + r"\n(.*?)^```$", text, re.M | re.S)
+    assert len(blocks) == 1, f"docs/install.md has {len(blocks)} ```sh {name} blocks"
+    return str(blocks[0])
+
+
+def run_commands(commands: str, *, env: Mapping[str, str], cwd: Path, what: str) -> str:
+    """Run shell commands as a user pastes them (bash, stopping at the first failure)."""
+    return run(["bash", "-euo", "pipefail", "-c", commands], env=env, cwd=cwd, what=what)
+
+
 @pytest.fixture(scope="session")
 def user_venv(wheel: Path) -> Iterator[Path]:
-    """A fresh venv with only the wheel and the ROS wheels it asks for, made with the
-    machine's Python (not this venv's), as a user would."""
+    """A fresh venv with only the wheel and the ROS wheels it asks for, made by docs/install.md's
+    commands, as written, with the machine's Python (not this checkout's venv)."""
     with exclusive("venv"):
         yield _user_venv(wheel)
 
 
 def _user_venv(wheel: Path) -> Path:
-    venv = CACHE / f"venv-{wheel.parent.name.removeprefix('wheel-')}"
-    if not (venv / ".complete").exists():
-        shutil.rmtree(venv, ignore_errors=True)
-        base_python = getattr(sys, "_base_executable", sys.executable)
-        environment = user_environment()
-        run([base_python, "-m", "venv", str(venv)], env=environment, cwd=CACHE, what="venv")
-        run(
-            [str(venv / "bin" / "pip"), "install", "--quiet", f"{wheel}[{EXTRAS}]"],
-            env=environment,
-            cwd=CACHE,
-            what="pip install of the wheel",
+    home = CACHE / f"user-{wheel.parent.name.removeprefix('wheel-')}"
+    venv = home / "contextros-venv"
+    if not (home / ".complete").exists():
+        shutil.rmtree(home, ignore_errors=True)
+        home.mkdir(parents=True)
+        commands = re.sub(r"^WHEEL=\S+", f"WHEEL={wheel}", install_commands("wheel"), flags=re.M)
+        assert str(wheel) in commands, "the wheel block no longer sets WHEEL=..."
+        output = run_commands(
+            commands,
+            env=user_environment(with_python=True),
+            cwd=home,
+            what="docs/install.md, wheel",
         )
-        (venv / ".complete").touch()
+        assert output.split()[:2] == ["contextros", __version__], output
+        assert output.split()[2] == str(venv), output  # --cmake-prefix
+        (home / ".complete").touch()
     return venv
 
 
 @pytest.fixture(scope="session")
 def cpp_package(user_venv: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """examples/cpp_package built as a user's own CMake project against the installed wheel:
-    `find_package(contextros CONFIG REQUIRED)` with the prefix `contextros --cmake-prefix`
-    prints, nothing else."""
-    source = tmp_path_factory.mktemp("user") / "cpp_package"
-    shutil.copytree(REPOSITORY / "examples" / "cpp_package", source)
-    environment = user_environment(user_venv)
-    prefix = run(
-        ["contextros", "--cmake-prefix"], env=environment, cwd=source, what="--cmake-prefix"
-    ).strip()
-    assert Path(prefix) == user_venv
-    build = source / "build"
-    generator = ["-G", "Ninja"] if shutil.which("ninja", path=environment["PATH"]) else []
-    run(
-        ["cmake", "-S", str(source), "-B", str(build), *generator, f"-DCMAKE_PREFIX_PATH={prefix}"],
-        env=environment,
-        cwd=source,
-        what="configuring the user's C++ project",
+    """examples/cpp_package built as a user's own CMake project against the installed wheel,
+    by docs/install.md's commands: `find_package(contextros CONFIG REQUIRED)` with the prefix
+    `contextros --cmake-prefix` prints, nothing else."""
+    user = tmp_path_factory.mktemp("user")
+    shutil.copytree(REPOSITORY / "examples" / "cpp_package", user / "examples" / "cpp_package")
+    run_commands(
+        f". {user_venv}/bin/activate\n" + install_commands("wheel-cpp"),
+        env=user_environment(),
+        cwd=user,
+        what="docs/install.md, wheel-cpp",
     )
-    run(["cmake", "--build", str(build)], env=environment, cwd=source, what="building it")
-    return build / "greeter"
+    return user / "build" / "greeter" / "greeter"
