@@ -180,8 +180,8 @@ def _user_venv(wheel: Path) -> Path:
             cwd=home,
             what="docs/install.md, wheel",
         )
-        assert output.split()[:2] == ["contextros", __version__], output
-        assert output.split()[2] == str(venv), output  # --cmake-prefix
+        lines = output.splitlines()
+        assert lines[-2:] == [f"contextros {__version__}", str(venv)], output  # --cmake-prefix
         (home / ".complete").touch()
     return venv
 
