@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core wheel bench lint clean
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean
 
 all: test
 
@@ -68,6 +68,10 @@ test: ros cpp
 # What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).
 test-slow: ros cpp
 	$(PY) -m pytest -q -m slow
+
+# The layer-language fuzzers on many more inputs than `make test` gives them.
+fuzz: venv
+	CONTEXTROS_FUZZ_EXAMPLES=5000 $(PY) -m pytest -q tests/language/test_fuzz.py
 
 # The platform wheel into dist/ (docs/install.md), from the build tree `make` keeps.
 wheel: ros

@@ -11,6 +11,7 @@ accepts.
 
 from __future__ import annotations
 
+import os
 import warnings
 
 from hypothesis import HealthCheck, given, settings
@@ -26,8 +27,9 @@ from contextros.language import (
 from contextros.language.diagnostics import printable, source_lines
 from tests.language.conftest import FIXTURES
 
+# `make test` runs each fuzzer on 300 inputs; `make fuzz` on 5,000 (CONTEXTROS_FUZZ_EXAMPLES).
 FUZZ = settings(
-    max_examples=1500,
+    max_examples=int(os.environ.get("CONTEXTROS_FUZZ_EXAMPLES", "300")),
     deadline=None,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much],
     database=None,
