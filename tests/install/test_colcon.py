@@ -20,7 +20,7 @@ from tests.install.conftest import (
 from tests.install.switching import switch_together
 from tests.ros.processes import ProcessGroup
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(1200)]
 
 HERE = Path(__file__).resolve().parent
 
