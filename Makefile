@@ -10,10 +10,15 @@ unexport RMW_IMPLEMENTATION
 
 all: test
 
-# The package, its dev tools and the ROS 2 wheels, in an editable install.
+# The package (editable) and the ROS 2 wheels: what the demo needs.
 $(VENV)/.stamp-base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip 'scikit-build-core>=0.11,<2'
+	$(PY) -m pip install --quiet --no-build-isolation -e '.[ros,ros-build]'
+	touch $@
+
+# The tools of the tests and the linters, on top.
+$(VENV)/.stamp-dev: $(VENV)/.stamp-base
 	$(PY) -m pip install --quiet --no-build-isolation -e '.[dev,ros,ros-build]'
 	touch $@
 
@@ -24,14 +29,14 @@ $(VENV)/.stamp-buildtools: $(VENV)/.stamp-base
 	  || $(PY) -m pip install --quiet 'cmake>=3.22,<5' 'ninja>=1.10'
 	touch $@
 
-# The rosidl messages (and the C++ libraries), built as the wheel builds them
+# The rosidl messages, built as the wheel builds them
 # (packaging/wheel, in build/wheel, which tests/install's wheel build then reuses); the
-# messages are installed into the venv (the C++ libraries of the tests are build/cpp's).
+# messages are installed into the venv (C++: build/cpp, below).
 WHEEL_BUILD := build/wheel
 $(VENV)/.stamp-interfaces: $(VENV)/.stamp-buildtools $(shell find interfaces/contextros_interfaces interfaces/cmake packaging/wheel -type f)
 	$(BUILD_PATH) cmake -S packaging/wheel -B $(WHEEL_BUILD) -G Ninja \
 	  -DPython3_EXECUTABLE=$(abspath $(PY)) >/dev/null
-	$(BUILD_PATH) cmake --build $(WHEEL_BUILD)
+	$(BUILD_PATH) cmake --build $(WHEEL_BUILD) --target interfaces
 	cmake --install $(WHEEL_BUILD)/interfaces --prefix $(abspath $(VENV)) >/dev/null
 	env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE -u LD_LIBRARY_PATH $(PY) -c \
 	  "from contextros_interfaces.msg import LayerState; LayerState(epoch=1)"
@@ -62,15 +67,15 @@ demo-rescue: ros
 	$(PY) -m examples.rescue.demo
 
 # tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
-test: ros cpp
+test: ros cpp $(VENV)/.stamp-dev
 	$(PY) -m pytest -n 2 -q -m "not slow"
 
 # What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).
-test-slow: ros cpp
+test-slow: ros cpp $(VENV)/.stamp-dev
 	$(PY) -m pytest -q -m slow
 
 # The layer-language fuzzers on many more inputs than `make test` gives them.
-fuzz: venv
+fuzz: $(VENV)/.stamp-dev
 	CONTEXTROS_FUZZ_EXAMPLES=5000 $(PY) -m pytest -q tests/language/test_fuzz.py
 
 # The platform wheel into dist/ (docs/install.md), from the build tree `make` keeps.
@@ -78,7 +83,7 @@ wheel: ros
 	$(PY) -m pip wheel --quiet --no-build-isolation --no-deps --wheel-dir dist .
 
 # The ROS-free part only (fast inner loop).
-test-core: venv
+test-core: $(VENV)/.stamp-dev
 	$(PY) -m pytest -q -m "not ros"
 
 $(VENV)/.stamp-bench: $(VENV)/.stamp-base
@@ -88,7 +93,7 @@ $(VENV)/.stamp-bench: $(VENV)/.stamp-base
 bench: ros cpp $(VENV)/.stamp-bench
 	$(PY) -m benchmarks
 
-lint: venv
+lint: $(VENV)/.stamp-dev
 	$(VENV)/bin/ruff check src tests benchmarks examples
 	$(VENV)/bin/ruff format --check src tests benchmarks examples
 	$(VENV)/bin/mypy

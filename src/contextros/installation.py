@@ -49,12 +49,6 @@ class RosUnavailableError(LayerError, ImportError):
     """A name of `contextros.ros` was asked for where ROS 2 or the messages are missing."""
 
 
-def require_ros() -> None:
-    """Raise RosUnavailableError, saying what to install, unless the ROS part can run."""
-    if problem := ros_problem():
-        raise RosUnavailableError(problem)
-
-
 def cmake_package_prefixes() -> list[Path]:
     """The prefixes that hold an installed `contextros` CMake package: this Python's (the
     wheel installs it there), then those of CMAKE_PREFIX_PATH and AMENT_PREFIX_PATH

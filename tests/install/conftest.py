@@ -155,7 +155,7 @@ def install_commands(name: str) -> str:
 
 def run_commands(commands: str, *, env: Mapping[str, str], cwd: Path, what: str) -> str:
     """Run shell commands as a user pastes them (bash, stopping at the first failure)."""
-    return run(["bash", "-euo", "pipefail", "-c", commands], env=env, cwd=cwd, what=what)
+    return run(["bash", "-eo", "pipefail", "-c", commands], env=env, cwd=cwd, what=what)
 
 
 @pytest.fixture(scope="session")

@@ -69,3 +69,12 @@ def test_a_missing_piece_is_named_with_what_to_install(tmp_path: Path) -> None:
         assert done.returncode == 2, done.stderr
         assert "Traceback" not in done.stderr, done.stderr
         assert "rclpy" in done.stderr and "docs/install.md" in done.stderr, done.stderr
+    # The Python API: the error names what is missing (a LayerError and an ImportError).
+    done = subprocess.run(
+        [str(venv / "bin" / "python"), "-c", "from contextros.ros import ContextNode"],
+        env=shell, capture_output=True, text=True, timeout=30,
+    )  # fmt: skip
+    assert done.returncode == 1
+    assert "RosUnavailableError: rclpy (ROS 2's Python client library) cannot be imported" in (
+        done.stderr
+    ), done.stderr
