@@ -8,11 +8,15 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from tests.install.conftest import user_environment
 from tests.install.switching import switch_together
 from tests.ros.processes import ProcessGroup
 
 HERE = Path(__file__).resolve().parent
+# The first test builds the wheel and the venv (a minute on a quiet 2-core machine).
+pytestmark = pytest.mark.timeout(900)
 
 
 def test_python_and_cpp_nodes_of_the_wheel_switch_together(
@@ -53,7 +57,14 @@ def test_a_missing_piece_is_named_with_what_to_install(tmp_path: Path) -> None:
     """A venv with the contextros wheel's Python package but no ROS 2 at all."""
     venv = tmp_path / "bare"
     subprocess.run(
-        [getattr(sys, "_base_executable", sys.executable), "-m", "venv", str(venv)], check=True
+        [
+            getattr(sys, "_base_executable", sys.executable),
+            "-m",
+            "venv",
+            "--without-pip",
+            str(venv),
+        ],
+        check=True,
     )
     shell = user_environment(
         venv, PYTHONPATH=str(Path(__import__("contextros").__file__).parents[1])
