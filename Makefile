@@ -10,23 +10,26 @@ unexport RMW_IMPLEMENTATION
 
 all: test
 
-# The package (editable) and the ROS 2 wheels: what the demo needs.
+# The package (editable) and the ROS 2 wheels: what the demo needs. uv installs them (from
+# the package index, like pip, 3x faster here); pip stays in the venv for users' commands.
+UV := $(VENV)/bin/uv pip install --quiet --python $(PY)
 $(VENV)/.stamp-base: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip 'scikit-build-core>=0.11,<2'
-	$(PY) -m pip install --quiet --no-build-isolation -e '.[ros,ros-build]'
+	$(PY) -m pip install --quiet 'uv>=0.9'
+	$(UV) 'scikit-build-core>=0.11,<2' -r pyproject.toml --extra ros --extra ros-build
+	$(UV) --no-build-isolation --no-deps -e .
 	touch $@
 
 # The tools of the tests and the linters, on top.
 $(VENV)/.stamp-dev: $(VENV)/.stamp-base
-	$(PY) -m pip install --quiet --no-build-isolation -e '.[dev,ros,ros-build]'
+	$(UV) -r pyproject.toml --extra dev
 	touch $@
 
 # cmake and ninja: the machine's, else the package index's, into the venv (on PATH below).
 BUILD_PATH := PATH="$(abspath $(VENV))/bin:$$PATH"
 $(VENV)/.stamp-buildtools: $(VENV)/.stamp-base
 	command -v cmake >/dev/null && command -v ninja >/dev/null \
-	  || $(PY) -m pip install --quiet 'cmake>=3.22,<5' 'ninja>=1.10'
+	  || $(UV) 'cmake>=3.22,<5' 'ninja>=1.10'
 	touch $@
 
 # The rosidl messages, built as the wheel builds them
@@ -87,7 +90,7 @@ test-core: $(VENV)/.stamp-dev
 	$(PY) -m pytest -q -m "not ros"
 
 $(VENV)/.stamp-bench: $(VENV)/.stamp-base
-	$(PY) -m pip install --quiet -e '.[bench]'
+	$(UV) -r pyproject.toml --extra bench
 	touch $@
 
 bench: ros cpp $(VENV)/.stamp-bench
