@@ -32,7 +32,7 @@ import random
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from contextros.protocol.events import (
     ActivationCommand,

@@ -7,6 +7,7 @@ naming the nodes and why. The answer carries its own epoch and that epoch's acti
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from contextros.protocol.events import ActivationCommand, ActivationResult, ManagerAction, Reply
@@ -33,13 +34,21 @@ class PendingActivation:
 class Acknowledgements(ManagerBase):
     """The pending synchronous activations (`_pending`)."""
 
-    def _settle_pending(self, now: float) -> list[ManagerAction]:
+    def _settle_pending(
+        self, now: float, examine: Iterable[Key] | None = None
+    ) -> list[ManagerAction]:
+        """Answer the pending activations that are decided. Only the participants in
+        `examine` changed since the last call (None: look at every one): a status is then
+        one lookup per pending activation, not a pass over every node it waits for."""
         replies: list[ManagerAction] = []
         still_pending: list[PendingActivation] = []
+        keys = None if examine is None else tuple(examine)
         for pending in self._pending:
             epoch = pending.state.epoch
-            self._add_expected(pending)
-            for key in sorted(pending.waiting):
+            self._add_expected(pending, keys)
+            for key in sorted(pending.waiting) if keys is None else keys:
+                if key not in pending.waiting:
+                    continue
                 report = self._participants[key].report
                 if report.applied_epoch >= epoch:
                     pending.waiting.discard(key)
@@ -47,29 +56,34 @@ class Acknowledgements(ManagerBase):
                 elif report.failed_epoch >= epoch:
                     pending.waiting.discard(key)
                     pending.failed[key] = f"failed to apply: {report.error or 'no reason given'}"
-            missing = self._missing(pending)
-            # Expected nodes may still join; without expectations, nobody left to wait for
-            # decides the answer (and reaching no node at all is a failure).
-            expecting = pending.command.expect_nodes or pending.command.expect_count
-            settled = not missing or pending.lost or pending.failed or not expecting
-            if not pending.waiting and settled:
-                replies.append(self._finish(pending, now, timed_out=False))
-            elif now >= pending.deadline:
+            if not pending.waiting:
+                missing = self._missing(pending)
+                # Expected nodes may still join; without expectations, nobody left to wait
+                # for decides the answer (and reaching no node at all is a failure).
+                expecting = pending.command.expect_nodes or pending.command.expect_count
+                if not missing or pending.lost or pending.failed or not expecting:
+                    replies.append(self._finish(pending, now, timed_out=False))
+                    continue
+            if now >= pending.deadline:
                 replies.append(self._finish(pending, now, timed_out=True))
             else:
                 still_pending.append(pending)
         self._pending = still_pending
         return replies
 
-    def _add_expected(self, pending: PendingActivation) -> None:
-        """An expected node that joined after the command must acknowledge it too."""
+    def _add_expected(self, pending: PendingActivation, keys: tuple[Key, ...] | None) -> None:
+        """An expected node that joined after the command must acknowledge it too (`keys`:
+        the participants to look at, None: all)."""
         wanted = set(pending.command.expect_nodes)
         if not wanted:
             return
-        counted = pending.waiting | pending.acknowledged | set(pending.lost) | set(pending.failed)
-        for key, record in self._participants.items():
-            speaks_for = {key[0], *record.report.hosted}
-            if key not in counted and speaks_for & wanted:
+        for key in self._participants if keys is None else keys:
+            record = self._participants.get(key)
+            if record is None or key in pending.waiting or key in pending.acknowledged:
+                continue
+            if key in pending.lost or key in pending.failed:
+                continue
+            if {key[0], *record.report.hosted} & wanted:
                 pending.waiting.add(key)
 
     def _acknowledged_names(self, pending: PendingActivation) -> set[str]:

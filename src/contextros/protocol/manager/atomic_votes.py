@@ -8,7 +8,7 @@ used once: an aborted one is skipped, so a vote always names one proposal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from contextros.protocol.events import (
     ActivationCommand,
@@ -34,6 +34,9 @@ class Transaction:
     deadline: float
     targets: set[Key]
     timeout: float
+    # Kept by `_count_votes` between full counts: the targets whose vote is yes.
+    yes: set[Key] = field(default_factory=set)
+    counted: bool = False
 
 
 class AtomicVotes(ManagerBase):
@@ -85,12 +88,28 @@ class AtomicVotes(ManagerBase):
         )
         return [PublishProposal(proposal), *self._count_votes(now)]
 
-    def _count_votes(self, now: float) -> list[ManagerAction]:
-        """Commit once every target voted yes; abort on a veto, a lost target or the timeout."""
+    def _count_votes(self, now: float, voter: Key | None = None) -> list[ManagerAction]:
+        """Commit once every target voted yes; abort on a veto, a lost target or the timeout.
+
+        `voter`: only this known participant's status changed since the last count, so
+        the count is kept up to date with it alone until it decides something."""
         transaction = self._transaction
         if transaction is None:
             return []
         epoch = transaction.proposal.epoch
+        if voter is not None and transaction.counted:
+            vetoed = False
+            if voter in transaction.targets:
+                report = self._participants[voter].report
+                voted = report.vote_epoch == epoch
+                if voted and report.vote_manager_id == self.settings.manager_id:
+                    vetoed = not report.vote_yes
+                    transaction.yes.add(voter)
+                else:
+                    transaction.yes.discard(voter)
+            undecided = len(transaction.yes) < len(transaction.targets)
+            if not vetoed and undecided and now < transaction.deadline:
+                return []
         vetoes: dict[str, str] = {}
         missing: list[Key] = []
         for key in sorted(transaction.targets):
@@ -103,6 +122,8 @@ class AtomicVotes(ManagerBase):
                 missing.append(key)  # no vote yet, or one on another manager's proposal
             elif not record.report.vote_yes:
                 vetoes[key[0]] = f"vetoed: {record.report.vote_reason or 'no reason given'}"
+        transaction.counted = True
+        transaction.yes = transaction.targets.difference(missing)
         if vetoes:
             return self._abort(now, vetoes)
         if missing and now >= transaction.deadline:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from collections import deque
+from collections.abc import Iterable
 from typing import TYPE_CHECKING
 
 from contextros.protocol.events import (
@@ -26,7 +27,6 @@ from contextros.protocol.relations import DeclaredOrder, LayerDeclaration
 from contextros.protocol.state import INITIAL_STATE, LayerState
 
 if TYPE_CHECKING:
-    from contextros.protocol.events import ParticipantReport
     from contextros.protocol.manager.acknowledgements import PendingActivation
     from contextros.protocol.manager.atomic_votes import Transaction
     from contextros.protocol.manager.registry import ParticipantRecord
@@ -59,9 +59,7 @@ class ManagerBase(ABC):
         self._pending: list[PendingActivation] = []
         self._queued: list[tuple[ActivationCommand, float]] = []
         self._order_cache: tuple[ActivationCommand, int, DeclaredOrder] | None = None
-        self._declarations_cache: (
-            tuple[tuple[ParticipantReport, ...], dict[str, LayerDeclaration]] | None
-        ) = None
+        self._declarations_cache: dict[str, LayerDeclaration] | None = None
         # Commands naming layers not known yet, held during the grace period after recovery.
         self._held: list[tuple[ActivationCommand, float]] = []
         self._dropped: deque[str] = deque(maxlen=self.settings.keep_dropped)
@@ -140,7 +138,9 @@ class ManagerBase(ABC):
     ) -> list[ManagerAction]: ...
 
     @abstractmethod
-    def _settle_pending(self, now: float) -> list[ManagerAction]: ...
+    def _settle_pending(
+        self, now: float, examine: Iterable[Key] | None = None
+    ) -> list[ManagerAction]: ...
 
     @abstractmethod
     def _propose(

@@ -39,6 +39,8 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
             return actions
         if known is None:
             actions += self._arrival(key, now)
+        if known is None or known.report.layers != report.layers:
+            self._declarations_cache = None
         self._participants[key] = ParticipantRecord(report, last_heard=now)
         self._hosted[report.node] = report.hosted
         if report.node in self._dropped:  # it rejoined: the dropped list names absent nodes
@@ -47,8 +49,8 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
             actions += self._overtake(report, now)
         if known is None:
             actions += self._release_held(now)
-        actions += self._settle_pending(now)
-        actions += self._count_votes(now)
+        actions += self._settle_pending(now, examine=(key,))
+        actions += self._count_votes(now, voter=key if known is not None else None)
         return actions
 
     def receive_command(self, command: ActivationCommand, now: float) -> list[ManagerAction]:
@@ -104,7 +106,7 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         if self._recovering_until is None:
             actions += self._drop_silent(now)
             actions += self._release_held(now)
-            actions += self._settle_pending(now)
+            actions += self._settle_pending(now, examine=())  # only the deadlines changed
             actions += self._count_votes(now)
             if self._transaction is not None:  # repeated while the vote is open (lossy links)
                 actions.append(PublishProposal(self._transaction.proposal))

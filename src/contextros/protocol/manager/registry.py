@@ -9,6 +9,7 @@ among the `keep_dropped` dropped names (bounded memory whatever the network send
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import dataclass
 
 from contextros.protocol.events import (
@@ -73,24 +74,18 @@ class Registry(ManagerBase):
         return tuple(self._dropped)
 
     def declarations(self) -> dict[str, LayerDeclaration]:
-        """The union of every live participant's declarations (merged once per set of
-        reports: a command asks for it several times). Do not modify the result."""
-        reports = tuple(record.report for record in self._participants.values())
-        cached = self._declarations_cache
-        if (
-            cached is not None
-            and len(cached[0]) == len(reports)
-            and all(a is b for a, b in zip(cached[0], reports, strict=True))
-        ):
-            return cached[1]
-        merged = merge_declarations(d for report in reports for d in report.layers)
-        self._declarations_cache = (reports, merged)
-        return merged
+        """The union of every live participant's declarations, merged again only when a
+        participant comes, goes or declares something else. Do not modify the result."""
+        if self._declarations_cache is None:
+            self._declarations_cache = merge_declarations(
+                d for record in self._participants.values() for d in record.report.layers
+            )
+        return self._declarations_cache
 
     def conflicts(self) -> tuple[str, ...]:
         """Names under which more than one live process reports."""
-        names = [node for node, _ in self._participants]
-        return tuple(sorted({n for n in names if names.count(n) > 1}))
+        processes = Counter(node for node, _ in self._participants)
+        return tuple(sorted(node for node, count in processes.items() if count > 1))
 
     def registry(self, now: float) -> RegistryView:
         implemented_by: dict[str, list[str]] = {}
@@ -127,7 +122,13 @@ class Registry(ManagerBase):
     # -- validation of statuses -------------------------------------------------------------
 
     def _report_problems(self, report: ParticipantReport) -> list[str]:
-        problems = report_problems(report)
+        # A participant repeats its declarations in every status: they are checked when
+        # they change, not at every heartbeat.
+        known = None
+        if isinstance(report.node, str) and isinstance(report.incarnation, str):
+            known = self._participants.get((report.node, report.incarnation))
+        unchanged = known is not None and known.report.layers == report.layers
+        problems = report_problems(report, check_layers=not unchanged)
         if problems:
             return problems
         # With no epoch known (no state file, nothing heard yet) only an absolute bound
@@ -184,6 +185,7 @@ class Registry(ManagerBase):
             actions.append(ParticipantJoined(node, restarted=bool(others)))
             for old in others:  # a restart: the new incarnation replaces the old ones
                 del self._participants[old]
+                self._declarations_cache = None
                 retired.add(old[1])
                 for pending in self._pending:
                     if old in pending.waiting:
@@ -200,15 +202,20 @@ class Registry(ManagerBase):
 
     def _drop_silent(self, now: float) -> list[ManagerAction]:
         """Drop every participant silent for longer than `liveness_timeout`."""
+        bound = self.settings.liveness_timeout
+        silent = [
+            (key, now - record.last_heard)
+            for key, record in self._participants.items()
+            if now - record.last_heard > bound
+        ]
         actions: list[ManagerAction] = []
-        for key, record in sorted(self._participants.items()):
-            silent = now - record.last_heard
-            if silent > self.settings.liveness_timeout:
-                actions += self._drop(key, f"silent for {silent:.1f} s", now)
+        for key, silent_for in sorted(silent):
+            actions += self._drop(key, f"silent for {silent_for:.1f} s", now)
         return actions
 
     def _drop(self, key: Key, why: str, now: float) -> list[ManagerAction]:
         del self._participants[key]
+        self._declarations_cache = None
         node = key[0]
         still_there = any(k[0] == node for k in self._participants)
         if not still_there:
