@@ -29,6 +29,7 @@ SECTIONS = [
     ("lossy_link", "Synchronous activation over a lossy link between two hosts (issue 10)"),
     ("rules", "Context rules: manager-side cost per message (issue 11)"),
     ("cli_command", "A CLI client command, from process start to exit (issue 12)"),
+    ("simulation", "The protocol at fleet scale, simulated: cost vs number of nodes (issue 16)"),
 ]
 
 

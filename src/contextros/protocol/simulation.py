@@ -32,7 +32,8 @@ import random
 import sys
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from functools import partial
 
 from contextros.protocol.events import (
     ActivationCommand,
@@ -101,7 +102,7 @@ class Scenario:
     # Seconds after the heal by which every node must be live and on the manager's epoch:
     # a dropped node rejoins at its next heartbeat, a lagging one gets the manager's.
     converge_within: float = 10.0
-    settings: ManagerSettings = ManagerSettings()
+    settings: ManagerSettings = field(default_factory=ManagerSettings)
 
     def replay_command(self) -> str:
         return (
@@ -117,8 +118,9 @@ class SimulationReport:
     messages_per_activation: float = 0.0
     manager_cpu_per_activation: float = 0.0  # seconds of this process's CPU
     activation_time: float = 0.0  # simulated seconds, command to answer
-    # Messages per simulated second with nothing happening (heartbeats both ways).
+    # Per simulated second with nothing happening (heartbeats both ways).
     idle_messages_per_second: float = 0.0
+    idle_manager_cpu_per_second: float = 0.0
     time_to_converge: float = 0.0  # simulated seconds after the heal
     commands: int = 0
     answers: int = 0
@@ -159,8 +161,12 @@ class _Counters:
 
 
 class Simulation:
-    def __init__(self, scenario: Scenario) -> None:
+    def __init__(
+        self, scenario: Scenario, manager_class: type[ManagerProtocol] = ManagerProtocol
+    ) -> None:
         self.scenario = scenario
+        # Another manager can be put to the same test (the tests check the checks this way).
+        self.manager_class = manager_class
         self.rng = random.Random(scenario.seed)
         self.now = 0.0
         self._queue: list[tuple[float, int, int, int, int, object]] = []
@@ -195,7 +201,7 @@ class Simulation:
         self.manager_generation += 1
         settings = replace(self.scenario.settings, manager_id=f"m{self.manager_generation}")
         self._schedule(self.now + MANAGER_TICK, _MANAGER_TICK, generation=self.manager_generation)
-        return ManagerProtocol(self.now, settings, saved)
+        return self.manager_class(self.now, settings, saved)
 
     # -- the event queue ------------------------------------------------------------------
 
@@ -489,31 +495,31 @@ class Simulation:
         for _ in range(faults.partitions):
             chosen = sorted(rng.sample(range(n), max(1, n // 10)))
             cut_for = rng.uniform(0.5, 5.0)
-            at(rng.uniform(0, faults.duration), lambda c=chosen, d=cut_for: self._cut_off(c, d))
+            at(rng.uniform(0, faults.duration), partial(self._cut_off, chosen, cut_for))
         for _ in range(faults.crashes):
             index, down = rng.randrange(n), rng.uniform(0.2, 5.0)
-            at(rng.uniform(0, faults.duration), lambda i=index, d=down: self._crash(i, d))
+            at(rng.uniform(0, faults.duration), partial(self._crash, index, down))
         for _ in range(faults.manager_restarts):
             down = rng.uniform(0.2, 2.0)
-            at(rng.uniform(0, faults.duration), lambda d=down: self._restart_manager(d))
+            at(rng.uniform(0, faults.duration), partial(self._restart_manager, down))
 
     def run(self) -> SimulationReport:
         started = time.perf_counter()
         scenario = self.scenario
         report = SimulationReport(scenario)
         period = DEFAULT_HEARTBEAT_PERIOD
-        for index, node in enumerate(self.nodes):
+        for index in range(len(self.nodes)):
             at = self.rng.random() * 0.5
-            self._schedule(at, _SCRIPT, payload=lambda i=index: self._announce(i))
+            self._schedule(at, _SCRIPT, payload=partial(self._announce, index))
         # Start-up: recovery, then every node on the first state.
         startup = self.now + 3 * scenario.settings.recovery_window + 10
         if not self.run_until(startup, self._converged, check_every=0.01):
             self._fail("the system did not converge after start-up")
-        idle_from, messages = self.now, self.counters.messages
-        self.run_until(self.now + 2 * period)
-        report.idle_messages_per_second = (self.counters.messages - messages) / (
-            self.now - idle_from
-        )
+        idle_from, messages, cpu = self.now, self.counters.messages, self.counters.manager_cpu
+        self.run_until(self.now + 4 * period)
+        idle = self.now - idle_from
+        report.idle_messages_per_second = (self.counters.messages - messages) / idle
+        report.idle_manager_cpu_per_second = (self.counters.manager_cpu - cpu) / idle
         # The clean phase, measured.
         messages, cpu, began = self.counters.messages, self.counters.manager_cpu, self.now
         for index in range(scenario.clean_activations):
