@@ -11,11 +11,10 @@ clients, guard conditions and waitables such as QoS event handlers), single-thre
 fixed order per wake-up (timers, subscriptions, guard conditions, clients, services,
 waitables). Coroutine callbacks are not supported (the nodes it runs have none).
 
-Why not `rclpy.experimental.EventsExecutor`: it is C++ and sends a service's response
-itself as soon as the callback returns, so the manager's held-back replies of synchronous
-activations (`_DeferredResponses`, which wraps `Service.send_response`) were sent empty at
-once or never; it would need the manager to answer from a future, which that executor
-re-polls.
+Why not `rclpy.experimental.EventsExecutor` (tried, ros-rclpy 9.1.2 wheels): its `spin`
+refuses the manager's node at once ("Guard conditions not supported": the manager wakes on
+a guard condition when a bindings worker is done); and even a plain node with only a
+timer, a subscription and a service had none of its callbacks run under it here.
 """
 
 from __future__ import annotations
