@@ -8,6 +8,10 @@ less its idle rate (heartbeats) measured just before. With `CONTEXTROS_BEFORE=<a
 tree>` the same system runs a second time on that tree's code, in another ROS domain, with
 the rounds of the two interleaved (blocks of 10), so both see the same machine load.
 
+On a loaded machine an activation can take hundreds of milliseconds (the workers wait
+for a core); the idle rate subtracted over that time then swamps the activation's own
+cost, and such a row says "not measurable" rather than a verdict.
+
 Profile the manager the same way: `python -m benchmarks.manager_cost --profile out.svg`
 (py-spy records the manager process during the rounds).
 """
@@ -195,6 +199,9 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         verdict = "met" if per <= TARGET_CPU_PER_PARTICIPANT_MS else "missed"
         if row["participants"] == 1:
             verdict = "(N=1: fixed costs)"
+        elif row["cpu_ms"] <= 0 or row["median_ms"] > 100:
+            # The idle rate subtracted over activations this slow swamps their own cost.
+            verdict = "not measurable: machine overloaded"
         lines.append(
             f"| {row['code']} | {row['participants']} | {row['median_ms']:.1f} ms "
             f"| {row['p90_ms']:.1f} ms | {row['cpu_ms']:.2f} ms | {per:.3f} ms | {verdict} "
