@@ -29,6 +29,9 @@ SECTIONS = [
     ("lossy_link", "Synchronous activation over a lossy link between two hosts (issue 10)"),
     ("rules", "Context rules: manager-side cost per message (issue 11)"),
     ("cli_command", "A CLI client command, from process start to exit (issue 12)"),
+    ("simulation", "The protocol at fleet scale, simulated: cost vs number of nodes (issue 16)"),
+    ("manager_cost", "The manager's CPU per synchronous activation, before/after (issue 16)"),
+    ("storm", "A storm of commands from 3 clients: throughput, exactness, memory (issue 16)"),
 ]
 
 

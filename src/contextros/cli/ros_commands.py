@@ -259,7 +259,7 @@ def run_manager(args: argparse.Namespace) -> int:
             except LayerError as error:
                 print(f"contextros manager: {error}", file=sys.stderr)
                 return FAILED
-            spin_nodes([node])
+            spin_nodes([node], lean=True)
     except _RosArgumentsError as error:
         return _usage_error(error)
     return 0

@@ -95,8 +95,9 @@ def declaration_problems(declaration: LayerDeclaration) -> list[str]:
     return [p for p in problems if p]
 
 
-def report_problems(report: ParticipantReport) -> list[str]:
-    """What is wrong with a participant's status (empty: nothing)."""
+def report_problems(report: ParticipantReport, check_layers: bool = True) -> list[str]:
+    """What is wrong with a participant's status (empty: nothing); `check_layers=False`
+    when its declarations were checked already (the same as in its previous status)."""
     problems = [
         node_name_problem(report.node),
         text_problem(report.incarnation, "incarnation", MAX_TOKEN_LENGTH),
@@ -113,7 +114,7 @@ def report_problems(report: ParticipantReport) -> list[str]:
         problems.append("incarnation is empty")
     if len(report.layers) > MAX_LAYERS:
         problems.append(f"layers lists {len(report.layers)} layers, more than {MAX_LAYERS}")
-    else:
+    elif check_layers:
         for declaration in report.layers:
             problems += declaration_problems(declaration)
     problems += _names_problems(report.active, "active_layers", MAX_LAYERS)

@@ -15,7 +15,7 @@ import threading
 import time
 import uuid
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -48,6 +48,7 @@ from contextros.ros.messages import (
     report_from_msg,
     state_to_msg,
 )
+from contextros.ros.node_log import NodeLog
 from contextros.rules import Firing, RuleSet
 
 if TYPE_CHECKING:
@@ -67,6 +68,8 @@ from contextros.ros.topics import (
     STATUS_TOPIC,
 )
 
+# Statuses handled per executor wake-up at most (the service and the timer get their turn).
+STATUS_BATCH = 256
 # After a reconcile failed: its first retry, doubling up to the maximum (seconds).
 RECONCILE_RETRY = 1.0
 RECONCILE_RETRY_MAX = 30.0
@@ -158,6 +161,7 @@ class LayerManagerNode(Node):
         **node_options: Any,
     ) -> None:
         super().__init__(node_name, **node_options)
+        self.log = NodeLog(self.get_logger())
         self.manager_id = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
         self.settings = dataclasses.replace(
             settings or ManagerSettings(), manager_id=self.manager_id
@@ -172,15 +176,17 @@ class LayerManagerNode(Node):
         self._state_pub = self.create_publisher(LayerStateMsg, STATE_TOPIC, STATE_QOS)
         self._heartbeat_pub = self.create_publisher(LayerStateMsg, HEARTBEAT_TOPIC, HEARTBEAT_QOS)
         self._proposal_pub = self.create_publisher(LayerStateMsg, PROPOSAL_TOPIC, PROPOSAL_QOS)
-        self.create_subscription(ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS)
+        self._status_subscription = self.create_subscription(
+            ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS
+        )
         activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
         self._responses = _DeferredResponses(
-            activate, lambda error: self.get_logger().warning(f"a reply was lost: {error}")
+            activate, lambda error: self.log.warning(f"a reply was lost: {error}")
         )
         self.create_service(QueryRegistry, QUERY_SERVICE, self._on_query)
         self.create_timer(tick_period, self._on_tick)
         origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
-        self.get_logger().info(f"Layer manager {self.manager_id} recovering from {origin}")
+        self.log.info(f"Layer manager {self.manager_id} recovering from {origin}")
         # Context rules run here, in the manager's executor: their commands enter the
         # protocol directly, in one order with the clients' (docs/rules.md says why).
         self._rule_requests: dict[int, Firing] = {}
@@ -218,14 +224,30 @@ class LayerManagerNode(Node):
     # -- executor callbacks -----------------------------------------------------------------
 
     def _on_status(self, msg: Any) -> None:
-        try:
-            report = report_from_msg(msg)
-        except (AttributeError, TypeError, ValueError) as error:  # a foreign or broken sender
-            self.get_logger().error(f"ignored an unreadable status message: {error}")
-            return
-        self._run(self.protocol.receive_status(report, time.monotonic()))
+        """A status, and every other one already waiting (the participants of a synchronous
+        activation answer at once): handled in one go, not one executor wake-up each."""
+        now = time.monotonic()
+        actions: list[ManagerAction] = []
+        for message in self._waiting_statuses(msg):
+            try:
+                report = report_from_msg(message)
+            except (AttributeError, TypeError, ValueError) as error:  # a foreign sender
+                self.log.error(f"ignored an unreadable status message: {error}")
+                continue
+            actions += self.protocol.receive_status(report, now)
+        self._run(actions)
         if self._commands and not self._driving:  # an atomic vote or a held layer may be over
             self._next_command()
+
+    def _waiting_statuses(self, first: Any) -> Iterator[Any]:
+        yield first
+        handle = self._status_subscription.handle
+        for _ in range(STATUS_BATCH - 1):
+            with handle:
+                taken = handle.take_message(ParticipantStatus, False)
+            if taken is None:
+                return
+            yield taken[0]
 
     def _on_tick(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))
@@ -370,7 +392,7 @@ class LayerManagerNode(Node):
         self._reconcile_failed_for = target
         delay = min(RECONCILE_RETRY * 2 ** (self._reconcile_failures - 1), RECONCILE_RETRY_MAX)
         self._reconcile_after = time.monotonic() + delay
-        self.get_logger().error(
+        self.log.error(
             f"layers' ROS side not reached: {error} (try {self._reconcile_failures}; "
             f"again in {delay:g} s, or with the next command)"
         )
@@ -381,7 +403,7 @@ class LayerManagerNode(Node):
         else:
             self._responses.answer(request_id, result)
             if not result.success:
-                self.get_logger().warning(f"refused: {result.message}")
+                self.log.warning(f"refused: {result.message}")
 
     # -- rules ------------------------------------------------------------------------------
 
@@ -409,15 +431,15 @@ class LayerManagerNode(Node):
     def _rule_outcome(self, firing: Firing, result: ActivationResult) -> None:
         target = ", ".join(firing.activate) or "without " + ", ".join(firing.deactivate)
         if result.success and result.message.startswith("no change"):
-            self.get_logger().info(f"rule {firing.rule}: {target} already in force (no change)")
+            self.log.info(f"rule {firing.rule}: {target} already in force (no change)")
         elif result.success:
-            self.get_logger().info(
+            self.log.info(
                 f"rule {firing.rule} switched to {target}: {len(result.acknowledged)} nodes "
                 f"applied it in {result.elapsed * 1000:.1f} ms (epoch {result.epoch}, "
                 f"[{', '.join(result.active)}])"
             )
         else:
-            self.get_logger().warning(
+            self.log.warning(
                 f"rule {firing.rule} could not switch to {target}: {result.message} "
                 "(tried again after the next state)"
             )
@@ -427,7 +449,7 @@ class LayerManagerNode(Node):
     def _flush_logs(self) -> None:
         logs, self._postponed_logs = self._postponed_logs, []
         for line in logs:
-            self.get_logger().info(line)
+            self.log.info(line)
 
     def _on_activate(self, request: Any, response: Any) -> Any:
         self._next_request_id += 1
@@ -465,7 +487,7 @@ class LayerManagerNode(Node):
             self.state_file.save(state)
         except OSError as error:
             # Keep switching: the participants still carry the epoch across a restart.
-            self.get_logger().error(
+            self.log.error(
                 f"state file {self.state_file.path} not written for epoch {state.epoch}: {error}"
             )
 
@@ -492,18 +514,18 @@ class LayerManagerNode(Node):
                 self._responses.answer(action.request_id, action.result)
                 self._flush_logs()
                 if not action.result.success:  # logged after the answer: it costs ~0.3 ms
-                    self.get_logger().warning(f"refused: {action.result.message}")
+                    self.log.warning(f"refused: {action.result.message}")
             elif isinstance(action, ParticipantJoined):
                 verb = "restarted" if action.restarted else "joined"
-                self.get_logger().info(f"participant {action.node} {verb}")
+                self.log.info(f"participant {action.node} {verb}")
             elif isinstance(action, ParticipantDropped):
-                self.get_logger().warning(f"participant {action.node} dropped: {action.reason}")
+                self.log.warning(f"participant {action.node} dropped: {action.reason}")
             elif isinstance(action, ReportRejected):
-                self.get_logger().warning(
+                self.log.warning(
                     f"ignored a status from {action.node!r}: {'; '.join(action.problems)}"
                 )
             elif isinstance(action, ParticipantConflict):
-                self.get_logger().error(
+                self.log.error(
                     f"two live processes are named {action.node}: both are tracked and each "
                     "must acknowledge for itself; give each context node a unique name "
                     "(or namespace)"

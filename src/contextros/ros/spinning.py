@@ -19,6 +19,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 
+from contextros.ros.wait_loop import WaitLoop
+
 RCLError = rclpy_implementation.RCLError
 
 
@@ -27,6 +29,7 @@ def spin_nodes(
     *,
     until: Callable[[], bool] | None = None,
     timeout: float | None = None,
+    lean: bool = False,
 ) -> None:
     """Spin `nodes` in one single-threaded executor until shutdown, `until()` or `timeout`.
 
@@ -35,10 +38,17 @@ def spin_nodes(
     once instead of after the liveness timeout). To that end, when called in the main
     thread, the signals are caught here for the duration of the spin, before rclpy's
     handler would shut the context down.
+
+    `lean`: spin with `WaitLoop` instead of rclpy's executor (the manager does: it answers
+    every participant's messages, and rclpy's executor cost more than its callbacks).
     """
-    executor = SingleThreadedExecutor()
-    for node in nodes:
-        executor.add_node(node)
+    executor: SingleThreadedExecutor | WaitLoop
+    if lean:
+        executor = WaitLoop(nodes)
+    else:
+        executor = SingleThreadedExecutor()
+        for node in nodes:
+            executor.add_node(node)
     deadline = None if timeout is None else time.monotonic() + timeout
     previous = _catch_signals()
     try:

@@ -1,0 +1,151 @@
+"""The manager's state, in one place, and the parts of it every other part uses.
+
+`ManagerProtocol` (protocol.py) is this state plus one mixin per concern, each in a module
+named after it: registry.py (who is live, their declarations, liveness), command_queue.py
+(validating and executing commands, holding them while they cannot be decided yet),
+acknowledgements.py (synchronous activations waiting for their nodes), atomic_votes.py
+(the two-phase atomic activation) and recovery.py (a (re)started manager's first state).
+A part calls another only through the methods declared abstract here.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections import deque
+from collections.abc import Iterable
+from typing import TYPE_CHECKING
+
+from contextros.protocol.events import (
+    ActivationCommand,
+    ActivationResult,
+    ManagerAction,
+    PublishHeartbeat,
+    PublishState,
+)
+from contextros.protocol.manager.settings import ManagerSettings
+from contextros.protocol.relations import DeclaredOrder, LayerDeclaration
+from contextros.protocol.state import INITIAL_STATE, LayerState
+
+if TYPE_CHECKING:
+    from contextros.protocol.manager.acknowledgements import PendingActivation
+    from contextros.protocol.manager.atomic_votes import Transaction
+    from contextros.protocol.manager.registry import ParticipantRecord
+
+# A participant is one process under one incarnation; a node name may (wrongly) be used
+# by two live processes at once, so the registry is keyed by both.
+Key = tuple[str, str]
+
+# The message of a command that leaves the configuration as it was (clients show it as is).
+NO_CHANGE = "no change"
+
+
+class ManagerBase(ABC):
+    """Everything the manager keeps, and publishing a new state."""
+
+    def __init__(
+        self,
+        now: float,
+        settings: ManagerSettings | None = None,
+        saved_state: LayerState | None = None,
+    ) -> None:
+        self.settings = settings or ManagerSettings()
+        self._state = saved_state or INITIAL_STATE
+        self._participants: dict[Key, ParticipantRecord] = {}
+        # Incarnations replaced by a newer one under the same name (a restart); hearing one
+        # again means two live processes share the name.
+        self._retired: dict[str, set[str]] = {}
+        # The nodes each participant speaks for, kept past a drop to name them in answers.
+        self._hosted: dict[str, tuple[str, ...]] = {}
+        self._pending: list[PendingActivation] = []
+        self._queued: list[tuple[ActivationCommand, float]] = []
+        self._order_cache: tuple[ActivationCommand, int, DeclaredOrder] | None = None
+        self._declarations_cache: dict[str, LayerDeclaration] | None = None
+        # Commands naming layers not known yet, held during the grace period after recovery.
+        self._held: list[tuple[ActivationCommand, float]] = []
+        self._dropped: deque[str] = deque(maxlen=self.settings.keep_dropped)
+        self._recovering_until: float | None = now + self.settings.recovery_window
+        self._recovery_limit = now + 3 * self.settings.recovery_window
+        self._grace_until = self._recovery_limit + self.settings.unknown_layer_grace
+        # Until a client decides something, the newest configuration a participant reports
+        # is the truth (the manager restarted without a state file, or with an older one).
+        self._decided_here = False
+        self._next_beat = now
+        self._repeats: list[float] = []
+        self._rejections_logged: dict[str, float] = {}
+        # The open atomic activation, if any; commands wait behind it. Every proposed epoch
+        # is used once: an aborted one is skipped, so a vote always names one proposal.
+        self._transaction: Transaction | None = None
+        self._behind_transaction: list[tuple[ActivationCommand, float]] = []
+        self._epoch_floor = 0
+        self._memoryless = saved_state is None
+
+    @property
+    def state(self) -> LayerState:
+        return self._state
+
+    @property
+    def recovering(self) -> bool:
+        return self._recovering_until is not None
+
+    def _publish(
+        self, active: tuple[str, ...], requester: str, reason: str, now: float, above: int
+    ) -> PublishState:
+        self._state = LayerState(
+            epoch=max(above, self._state.epoch, self._epoch_floor) + 1,
+            active=tuple(active),
+            requester=requester,
+            reason=reason,
+            stamp=now,
+            manager_id=self.settings.manager_id,
+        )
+        # Repeat it on the best-effort heartbeat shortly after: on a lossy link the reliable
+        # state can wait seconds behind retransmissions, a repeat does not.
+        self._repeats = [now + delay for delay in self.settings.repeats]
+        return PublishState(self._state)
+
+    def _heartbeat(self, now: float) -> list[ManagerAction]:
+        beat_due = now >= self._next_beat
+        repeat_due = bool(self._repeats) and now >= self._repeats[0]
+        if not (beat_due or repeat_due):
+            return []
+        self._repeats = [t for t in self._repeats if t > now]
+        if not beat_due and not self._someone_lags():
+            return []  # every node has the state: a repeat would only load them
+        self._next_beat = now + self.settings.heartbeat_period
+        if self.recovering:
+            beat = LayerState(epoch=0, reason="recovering", manager_id=self.settings.manager_id)
+        else:
+            beat = self._state
+        return [PublishHeartbeat(beat)]
+
+    def _someone_lags(self) -> bool:
+        return any(r.report.applied_epoch < self._state.epoch for r in self._participants.values())
+
+    def _result(self, success: bool, message: str) -> ActivationResult:
+        return ActivationResult(success, message, self._state.epoch, self._state.active)
+
+    # -- provided by the parts --------------------------------------------------------------
+
+    @abstractmethod
+    def declarations(self) -> dict[str, LayerDeclaration]: ...
+
+    @abstractmethod
+    def conflicts(self) -> tuple[str, ...]: ...
+
+    @abstractmethod
+    def _execute(
+        self, command: ActivationCommand, now: float, received: float
+    ) -> list[ManagerAction]: ...
+
+    @abstractmethod
+    def _settle_pending(
+        self, now: float, examine: Iterable[Key] | None = None
+    ) -> list[ManagerAction]: ...
+
+    @abstractmethod
+    def _propose(
+        self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
+    ) -> list[ManagerAction]: ...
+
+    @abstractmethod
+    def _abort(self, now: float, reasons: dict[str, str]) -> list[ManagerAction]: ...

@@ -1,0 +1,114 @@
+"""The Layer manager as a pure state machine: events in, actions out, time passed in."""
+
+from __future__ import annotations
+
+from contextros.protocol.events import (
+    ActivationCommand,
+    ManagerAction,
+    ParticipantReport,
+    PublishProposal,
+    Reply,
+)
+from contextros.protocol.manager.acknowledgements import Acknowledgements
+from contextros.protocol.manager.atomic_votes import AtomicVotes
+from contextros.protocol.manager.command_queue import CommandQueue
+from contextros.protocol.manager.recovery import Recovery
+from contextros.protocol.manager.registry import ParticipantRecord, Registry
+from contextros.protocol.validation import command_problems
+
+
+class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Recovery):
+    """The manager's registry, state and pending synchronous activations: the events it
+    takes (statuses, commands, the passing of time) and the actions it returns."""
+
+    def receive_status(self, report: ParticipantReport, now: float) -> list[ManagerAction]:
+        self._order_cache = None
+        problems = self._report_problems(report)
+        if problems:
+            return self._rejected(report, problems, now)
+        actions: list[ManagerAction] = []
+        key = (report.node, report.incarnation)
+        known = self._participants.get(key)
+        if report.leaving:
+            if known is not None:
+                actions += self._drop(key, "left", now)
+            return actions
+        if known is not None and report.applied_epoch < known.report.applied_epoch:
+            # A stale report (a node never goes back): it only proves the node is alive.
+            known.last_heard = now
+            return actions
+        if known is None:
+            actions += self._arrival(key, now)
+        if known is None or known.report.layers != report.layers:
+            self._declarations_cache = None
+        self._participants[key] = ParticipantRecord(report, last_heard=now)
+        self._hosted[report.node] = report.hosted
+        if report.node in self._dropped:  # it rejoined: the dropped list names absent nodes
+            self._dropped.remove(report.node)
+        if not self.recovering and self._is_ahead(report):
+            actions += self._overtake(report, now)
+        if known is None:
+            actions += self._release_held(now)
+        actions += self._settle_pending(now, examine=(key,))
+        actions += self._count_votes(now, voter=key if known is not None else None)
+        return actions
+
+    def receive_command(self, command: ActivationCommand, now: float) -> list[ManagerAction]:
+        self._order_cache = None
+        problems = command_problems(command)
+        if problems:
+            message = f"invalid command: {'; '.join(problems)}; nothing changed"
+            return [Reply(command.request_id, self._result(False, message))]
+        waiting = self.waiting_commands
+        if waiting >= self.settings.max_waiting_commands:
+            message = (
+                f"refused: {waiting} commands are waiting in the manager already, at most "
+                f"{self.settings.max_waiting_commands} (max_waiting_commands); nothing changed, "
+                "try again later"
+            )
+            return [Reply(command.request_id, self._result(False, message))]
+        if self.recovering:
+            self._queued.append((command, now))
+            return []
+        return self._execute(command, now, now)
+
+    def preview(self, command: ActivationCommand) -> tuple[str, tuple[str, ...]]:
+        """What `command` would make active if it came now, changing nothing: ("", layers),
+        or (the reason it would be refused, the current layers). While recovering, the
+        current layers (the command will wait)."""
+        self._order_cache = None
+        if command_problems(command) or self.recovering:
+            return ("invalid command" if command_problems(command) else ""), self._state.active
+        problem, _ = self._validate(command)
+        if problem:
+            return problem, self._state.active
+        return "", self._next_active(command)
+
+    def would_hold(self, command: ActivationCommand, now: float) -> bool:
+        """Whether `receive_command(command, now)` would keep `command` waiting rather than
+        decide it (changing nothing): the manager recovers, an atomic vote is open, or the
+        command names a layer nobody implements yet within the grace period. An adapter
+        with work to do before a state is published (layers that drive ROS) keeps such a
+        command itself until this is False, then previews it."""
+        if command_problems(command):
+            return False
+        if self.recovering or self._transaction is not None:
+            return True
+        self._order_cache = None
+        problem, unknown = self._validate(command)
+        return bool(problem) and unknown and now < self._grace_until
+
+    def tick(self, now: float) -> list[ManagerAction]:
+        self._order_cache = None
+        actions: list[ManagerAction] = []
+        if self._recovering_until is not None and now >= self._recovering_until:
+            actions += self._finish_recovery(now)
+        if self._recovering_until is None:
+            actions += self._drop_silent(now)
+            actions += self._release_held(now)
+            actions += self._settle_pending(now, examine=())  # only the deadlines changed
+            actions += self._count_votes(now)
+            if self._transaction is not None:  # repeated while the vote is open (lossy links)
+                actions.append(PublishProposal(self._transaction.proposal))
+        actions += self._heartbeat(now)
+        return actions

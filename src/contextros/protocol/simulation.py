@@ -1,0 +1,638 @@
+"""The whole protocol at scale, simulated: one manager, N participants and a network that
+delays, loses, duplicates and reorders messages, cuts nodes off, crashes and restarts them
+(the manager too), all drawn from one seed so that any run replays exactly.
+
+A run has four phases: start-up (every participant announces, the manager recovers), a
+clean phase of back-to-back synchronous activations (measured: messages, manager CPU and
+time per activation), a fault phase (commands of every kind while the faults happen) and
+a heal (faults stop, crashed nodes are back): the system must converge, and a last
+synchronous activation must be acknowledged by every node. Checked all along:
+
+- no epoch names two layer sets (among states published and states applied);
+- no participant goes back: each incarnation applies strictly increasing epochs;
+- an aborted atomic activation changed nothing: its epoch is never published nor applied;
+- answers are exact: one answer per command; a success carries its epoch's layers and every
+  node it names as acknowledging applied that epoch; in the clean phases every
+  synchronous activation succeeds, acknowledged by all N nodes;
+- after the heal, within `converge_within` seconds, every node is live in the manager and
+  applied its epoch.
+
+    python -m contextros.protocol.simulation --seed 123 --participants 1000
+
+A violation raises `InvariantViolation`, whose message names the seed and the command that
+replays it. Time is simulated (no sleeping); the manager's CPU is measured for real.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import heapq
+import random
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from functools import partial
+
+from contextros.protocol.events import (
+    ActivationCommand,
+    ActivationResult,
+    ApplyState,
+    ManagerAction,
+    ParticipantAction,
+    ParticipantReport,
+    PublishHeartbeat,
+    PublishProposal,
+    PublishState,
+    PublishStatus,
+    Reply,
+    StateRejected,
+)
+from contextros.protocol.manager import ManagerProtocol, ManagerSettings
+from contextros.protocol.participant import DEFAULT_HEARTBEAT_PERIOD, ParticipantProtocol
+from contextros.protocol.relations import LayerDeclaration
+from contextros.protocol.state import LayerState
+
+LAYERS = (
+    LayerDeclaration("Indoor", group="location"),
+    LayerDeclaration("Outdoor", group="location"),
+    LayerDeclaration("Night"),
+    LayerDeclaration("Slow", excludes=frozenset({"Fast"})),
+    LayerDeclaration("Fast"),
+)
+MANAGER_TICK = 0.05  # the rclpy manager node's timer period
+
+# What travels, as the first item of a scheduled event.
+_TO_MANAGER, _STATE, _PROPOSAL, _WAKE, _MANAGER_TICK, _SCRIPT = range(6)
+
+
+class InvariantViolation(AssertionError):
+    """A guarantee of docs/protocol.md broke in a simulated run (the message says how to
+    replay it)."""
+
+
+@dataclass(frozen=True)
+class Faults:
+    """What the network and the processes do wrong during the fault phase."""
+
+    loss: float = 0.2
+    duplication: float = 0.1
+    # One-way delay, uniform in this range: a range wider than the gaps between messages
+    # reorders them.
+    delay: tuple[float, float] = (0.001, 0.25)
+    # Each: a random tenth of the nodes (at least one) cut off for 0.5 to 5 s.
+    partitions: int = 2
+    # Each: a node's process dies and a new incarnation starts 0.2 to 5 s later.
+    crashes: int = 3
+    # Each: the manager dies and restarts from its state file 0.2 to 2 s later.
+    manager_restarts: int = 1
+    duration: float = 10.0
+    commands: int = 12
+
+
+@dataclass(frozen=True)
+class Scenario:
+    participants: int = 10
+    seed: int = 0
+    # Back-to-back synchronous activations on a clean link, measured.
+    clean_activations: int = 5
+    faults: Faults = Faults()
+    clean_delay: tuple[float, float] = (0.0005, 0.002)
+    # Seconds after the heal by which every node must be live and on the manager's epoch:
+    # a dropped node rejoins at its next heartbeat, a lagging one gets the manager's.
+    converge_within: float = 10.0
+    settings: ManagerSettings = field(default_factory=ManagerSettings)
+
+    def replay_command(self) -> str:
+        return (
+            f"python -m contextros.protocol.simulation --seed {self.seed} "
+            f"--participants {self.participants}"
+        )
+
+
+@dataclass
+class SimulationReport:
+    scenario: Scenario
+    # The clean phase, per synchronous activation.
+    messages_per_activation: float = 0.0
+    manager_cpu_per_activation: float = 0.0  # seconds of this process's CPU
+    activation_time: float = 0.0  # simulated seconds, command to answer
+    # Per simulated second with nothing happening (heartbeats both ways).
+    idle_messages_per_second: float = 0.0
+    idle_manager_cpu_per_second: float = 0.0
+    time_to_converge: float = 0.0  # simulated seconds after the heal
+    commands: int = 0
+    answers: int = 0
+    aborted_atomic: int = 0
+    messages: int = 0
+    events: int = 0
+    wall_time: float = 0.0
+    # A digest of everything that happened: equal for two runs of one scenario.
+    trace: str = ""
+
+
+@dataclass
+class _Node:
+    """One participant's process as the simulation sees it."""
+
+    name: str
+    protocol: ParticipantProtocol
+    generation: int = 0  # its incarnation number: events for an older one are void
+    alive: bool = True
+    next_wake: float = 0.0
+    # Every epoch this incarnation applied, for the no-regression check.
+    last_applied: int = 0
+    ever_applied: int = 0
+    veto_next: bool = False
+
+
+@dataclass
+class _Command:
+    command: ActivationCommand
+    manager_generation: int
+    answer: ActivationResult | None = None
+
+
+@dataclass
+class _Counters:
+    messages: int = 0
+    manager_cpu: float = 0.0
+
+
+class Simulation:
+    def __init__(
+        self, scenario: Scenario, manager_class: type[ManagerProtocol] = ManagerProtocol
+    ) -> None:
+        self.scenario = scenario
+        # Another manager can be put to the same test (the tests check the checks this way).
+        self.manager_class = manager_class
+        self.rng = random.Random(scenario.seed)
+        self.now = 0.0
+        self._queue: list[tuple[float, int, int, int, int, object]] = []
+        self._sequence = 0
+        self._faulty = False
+        self._cut: set[int] = set()
+        self.counters = _Counters()
+        self._events = 0
+        self._trace = hashlib.sha256()
+        self.nodes = [
+            _Node(f"/robot/node{index}", self._participant(f"/robot/node{index}", 0))
+            for index in range(scenario.participants)
+        ]
+        self._index = {node.name: index for index, node in enumerate(self.nodes)}
+        self.manager_generation = 0
+        self.manager: ManagerProtocol | None = self._start_manager(None)
+        self.state_file: LayerState | None = None
+        # Every state published or applied, by epoch, with who published it (a restarted
+        # manager may propose an epoch its predecessor proposed and aborted; never publish).
+        self.layers_of_epoch: dict[int, tuple[str, ...]] = {}
+        self.aborted: set[tuple[int, int]] = set()  # (manager generation, epoch)
+        self.published: set[tuple[int, int]] = set()
+        self.commands: dict[int, _Command] = {}
+        self._request_id = 0
+
+    # -- set-up ---------------------------------------------------------------------------
+
+    def _participant(self, name: str, generation: int) -> ParticipantProtocol:
+        return ParticipantProtocol(name, f"i{generation}", LAYERS)
+
+    def _start_manager(self, saved: LayerState | None) -> ManagerProtocol:
+        self.manager_generation += 1
+        settings = replace(self.scenario.settings, manager_id=f"m{self.manager_generation}")
+        self._schedule(self.now + MANAGER_TICK, _MANAGER_TICK, generation=self.manager_generation)
+        return self.manager_class(self.now, settings, saved)
+
+    # -- the event queue ------------------------------------------------------------------
+
+    def _schedule(
+        self, at: float, kind: int, target: int = 0, generation: int = 0, payload: object = None
+    ) -> None:
+        self._sequence += 1
+        heapq.heappush(self._queue, (at, self._sequence, kind, target, generation, payload))
+
+    def _delay(self) -> float:
+        low, high = self.scenario.faults.delay if self._faulty else self.scenario.clean_delay
+        return low + self.rng.random() * (high - low)
+
+    def _send(self, kind: int, target: int, generation: int, payload: object) -> None:
+        """One message over the simulated network (to a participant, or -1: the manager)."""
+        self.counters.messages += 1
+        node = target if kind != _TO_MANAGER else generation
+        if node in self._cut:
+            return
+        copies = 1
+        if self._faulty:
+            faults = self.scenario.faults
+            if self.rng.random() < faults.loss:
+                return
+            if self.rng.random() < faults.duplication:
+                copies = 2
+        for _ in range(copies):
+            self._schedule(self.now + self._delay(), kind, target, generation, payload)
+
+    def _wake(self, index: int, at: float) -> None:
+        node = self.nodes[index]
+        if at < node.next_wake or node.next_wake <= self.now:
+            node.next_wake = at
+            self._schedule(at, _WAKE, index, node.generation)
+
+    # -- running --------------------------------------------------------------------------
+
+    def run_until(
+        self, end: float, done: Callable[[], bool] | None = None, check_every: float = 0.0
+    ) -> bool:
+        """Process events up to `end` (simulated seconds); stop early once `done()`, asked
+        after every event or, for a costly question, every `check_every` seconds."""
+        checked = self.now
+        while self._queue and self._queue[0][0] <= end:
+            at, _, kind, target, generation, payload = heapq.heappop(self._queue)
+            self.now = at
+            self._events += 1
+            self._dispatch(kind, target, generation, payload)
+            if done is not None and at - checked >= check_every:
+                checked = at
+                if done():
+                    return True
+        self.now = max(self.now, end)
+        return done() if done is not None else False
+
+    def _dispatch(self, kind: int, target: int, generation: int, payload: object) -> None:
+        if kind == _TO_MANAGER:
+            assert isinstance(payload, ParticipantReport)
+            if self.manager is not None:
+                self._manager_call(lambda m: m.receive_status(payload, self.now))
+        elif kind == _MANAGER_TICK:
+            if self.manager is not None and generation == self.manager_generation:
+                self._manager_call(lambda m: m.tick(self.now))
+                self._schedule(self.now + MANAGER_TICK, _MANAGER_TICK, generation=generation)
+        elif kind == _SCRIPT:
+            assert callable(payload)
+            payload()
+        else:
+            node = self.nodes[target]
+            if not node.alive or generation != node.generation:
+                return
+            protocol = node.protocol
+            if kind == _WAKE:
+                if self.now < node.next_wake:
+                    return  # replaced by an earlier wake
+                node.next_wake = 0.0
+                self._run_participant(target, protocol.tick(self.now))
+                self._wake(target, self.now + protocol.heartbeat_period)
+            elif kind == _STATE:
+                assert isinstance(payload, LayerState)
+                self._run_participant(target, protocol.receive_state(payload, self.now))
+            else:
+                assert isinstance(payload, LayerState)
+                veto = ""
+                if node.veto_next and payload.epoch > protocol.newest_epoch:
+                    node.veto_next, veto = False, "busy (simulated veto)"
+                actions = protocol.receive_proposal(payload, self.now, veto)
+                self._run_participant(target, actions)
+            repeat = protocol.next_repeat
+            if repeat is not None:
+                self._wake(target, repeat)
+
+    def _manager_call(self, call: Callable[[ManagerProtocol], list[ManagerAction]]) -> None:
+        manager = self.manager
+        assert manager is not None
+        started = time.process_time()
+        actions = call(manager)
+        self.counters.manager_cpu += time.process_time() - started
+        self._run_manager(actions)
+
+    def _run_manager(self, actions: Sequence[ManagerAction]) -> None:
+        generation = self.manager_generation
+        for action in actions:
+            if isinstance(action, PublishState):
+                state = action.state
+                self._check_epoch(state, f"published by manager m{generation}")
+                if (generation, state.epoch) in self.aborted:
+                    self._fail(f"epoch {state.epoch} was published after its atomic abort")
+                self.published.add((generation, state.epoch))
+                self.state_file = state  # persisted, then broadcast
+                self._trace.update(f"S{state.epoch}{state.active}".encode())
+                self._broadcast(_STATE, state)
+            elif isinstance(action, PublishHeartbeat):
+                self._broadcast(_STATE, action.state)
+            elif isinstance(action, PublishProposal):
+                self._broadcast(_PROPOSAL, action.state)
+            elif isinstance(action, Reply):
+                self._check_answer(action.request_id, action.result)
+
+    def _broadcast(self, kind: int, state: LayerState) -> None:
+        for index, node in enumerate(self.nodes):
+            self._send(kind, index, node.generation, state)
+
+    def _run_participant(self, index: int, actions: Sequence[ParticipantAction]) -> None:
+        node = self.nodes[index]
+        for action in actions:
+            if isinstance(action, ApplyState):
+                state = action.state
+                if state.epoch <= node.last_applied:
+                    self._fail(f"{node.name} went back from {node.last_applied} to {state}")
+                if (_generation_of(state), state.epoch) in self.aborted:
+                    self._fail(f"{node.name} applied aborted epoch {state.epoch}")
+                self._check_epoch(state, f"applied by {node.name}")
+                node.last_applied = state.epoch
+                node.ever_applied = max(node.ever_applied, state.epoch)
+                self._run_participant(index, node.protocol.applied(state, self.now))
+            elif isinstance(action, PublishStatus):
+                self._send(_TO_MANAGER, -1, index, action.report)
+            elif isinstance(action, StateRejected):
+                self._fail(f"{node.name} rejected a state of the manager: {action.problems}")
+
+    # -- invariants -----------------------------------------------------------------------
+
+    def _fail(self, what: str) -> None:
+        raise InvariantViolation(
+            f"seed {self.scenario.seed}, {self.scenario.participants} participants, "
+            f"t={self.now:.3f} s: {what}\nreplay: {self.scenario.replay_command()}"
+        )
+
+    def _check_epoch(self, state: LayerState, where: str) -> None:
+        known = self.layers_of_epoch.setdefault(state.epoch, state.active)
+        if known != state.active:
+            self._fail(
+                f"epoch {state.epoch} names two layer sets: {known} and {state.active} ({where})"
+            )
+
+    def _check_answer(self, request_id: int, result: ActivationResult) -> None:
+        asked = self.commands.get(request_id)
+        if asked is None:
+            self._fail(f"an answer to request {request_id}, never asked")
+            return
+        if asked.answer is not None:
+            self._fail(f"a second answer to request {request_id}: {result.message}")
+        asked.answer = result
+        command = asked.command
+        self._trace.update(f"R{request_id}{result.success}{result.epoch}".encode())
+        if command.atomic and "aborted" in result.message:
+            epoch = int(result.message.split("epoch ")[1].split(" ")[0])
+            if (self.manager_generation, epoch) in self.published:
+                self._fail(f"atomic epoch {epoch} aborted after it was published")
+            self.aborted.add((self.manager_generation, epoch))
+        if not result.success:
+            return
+        known = self.layers_of_epoch.get(result.epoch)
+        if known is not None and known != result.active:
+            self._fail(
+                f"answer to {request_id} says epoch {result.epoch} is {result.active}, "
+                f"it is {known}"
+            )
+        if not (command.synchronous or command.atomic):
+            return
+        if not result.acknowledged:
+            self._fail(f"synchronous success of request {request_id} reached no node")
+        for name in result.acknowledged:
+            if self.nodes[self._index[name]].ever_applied < result.epoch:
+                self._fail(f"{name} is said to acknowledge epoch {result.epoch}, never applied it")
+
+    def _converged(self) -> bool:
+        manager = self.manager
+        if manager is None or manager.recovering or manager.state.epoch == 0:
+            return False
+        epoch = manager.state.epoch
+        if any(node.protocol.applied_epoch != epoch for node in self.nodes):
+            return False
+        return len(manager.live_nodes) == len(self.nodes) and not manager.conflicts()
+
+    # -- the script -----------------------------------------------------------------------
+
+    def command(self, **fields: object) -> int:
+        assert self.manager is not None
+        self._request_id += 1
+        command = ActivationCommand(self._request_id, requester="simulation", **fields)  # type: ignore[arg-type]
+        self.commands[self._request_id] = _Command(command, self.manager_generation)
+        self._trace.update(f"C{command}".encode())
+        self._manager_call(lambda m: m.receive_command(command, self.now))
+        return self._request_id
+
+    def _sync_activation(self, index: int) -> ActivationResult:
+        """A synchronous activation on a clean link, run until answered (exact or failed)."""
+        layer = ("Indoor", "Outdoor")[index % 2]
+        night = ("Night",) if index % 3 == 0 else ()
+        request = self.command(activate=(layer, *night), synchronous=True, timeout=5.0)
+        self.run_until(self.now + 10.0, lambda: self.commands[request].answer is not None)
+        answer = self.commands[request].answer
+        if answer is None:
+            self._fail(f"synchronous activation {request} got no answer within 10 s")
+        assert answer is not None
+        every = tuple(sorted(node.name for node in self.nodes))
+        if not answer.success or answer.acknowledged != every:
+            self._fail(
+                f"clean synchronous activation {request} not exact: {answer.message} "
+                f"({len(answer.acknowledged)} of {len(every)} acknowledged)"
+            )
+        return answer
+
+    def _crash(self, index: int, down_for: float) -> None:
+        node = self.nodes[index]
+        if not node.alive:
+            return
+        node.alive = False
+
+        def restart() -> None:
+            node.generation += 1
+            node.protocol = self._participant(node.name, node.generation)
+            node.alive, node.last_applied, node.next_wake = True, 0, 0.0
+            self._run_participant(index, node.protocol.announce(self.now))
+            self._wake(index, self.now + self.rng.random() * node.protocol.heartbeat_period)
+
+        self._schedule(self.now + down_for, _SCRIPT, payload=restart)
+
+    def _restart_manager(self, down_for: float) -> None:
+        if self.manager is None:
+            return
+        self.manager = None
+
+        def restart() -> None:
+            if self.manager is None:
+                self.manager = self._start_manager(self.state_file)
+
+        self._schedule(self.now + down_for, _SCRIPT, payload=restart)
+
+    def _cut_off(self, indices: list[int], cut_for: float) -> None:
+        self._cut.update(indices)
+
+        def heal() -> None:
+            self._cut.difference_update(indices)
+
+        self._schedule(self.now + cut_for, _SCRIPT, payload=heal)
+
+    def _random_command(self) -> None:
+        if self.manager is None:
+            return  # a client finds no manager: it times out, nothing is asked
+        rng = self.rng
+        mode = rng.choice(("async", "sync", "atomic"))
+        layers = [d.name for d in LAYERS]
+        activate = (rng.choice(layers),)
+        deactivate = tuple(
+            n for n in (rng.choice(layers),) if n not in activate and rng.random() < 0.3
+        )
+        if mode == "atomic" and rng.random() < 0.3:
+            self.nodes[rng.randrange(len(self.nodes))].veto_next = True
+        expect = (self.nodes[rng.randrange(len(self.nodes))].name,) if rng.random() < 0.3 else ()
+        self.command(
+            activate=activate,
+            deactivate=deactivate,
+            synchronous=mode == "sync",
+            atomic=mode == "atomic",
+            timeout=rng.uniform(0.5, 3.0),
+            expect_nodes=expect,
+        )
+
+    def _script_faults(self) -> None:
+        faults, rng, start = self.scenario.faults, self.rng, self.now
+        n = len(self.nodes)
+
+        def at(offset: float, action: Callable[[], None]) -> None:
+            self._schedule(start + offset, _SCRIPT, payload=action)
+
+        for _ in range(faults.commands):
+            at(rng.uniform(0, faults.duration), self._random_command)
+        for _ in range(faults.partitions):
+            chosen = sorted(rng.sample(range(n), max(1, n // 10)))
+            cut_for = rng.uniform(0.5, 5.0)
+            at(rng.uniform(0, faults.duration), partial(self._cut_off, chosen, cut_for))
+        for _ in range(faults.crashes):
+            index, down = rng.randrange(n), rng.uniform(0.2, 5.0)
+            at(rng.uniform(0, faults.duration), partial(self._crash, index, down))
+        for _ in range(faults.manager_restarts):
+            down = rng.uniform(0.2, 2.0)
+            at(rng.uniform(0, faults.duration), partial(self._restart_manager, down))
+
+    def run(self) -> SimulationReport:
+        started = time.perf_counter()
+        scenario = self.scenario
+        report = SimulationReport(scenario)
+        period = DEFAULT_HEARTBEAT_PERIOD
+        for index in range(len(self.nodes)):
+            at = self.rng.random() * 0.5
+            self._schedule(at, _SCRIPT, payload=partial(self._announce, index))
+        # Start-up: recovery, then every node on the first state.
+        startup = self.now + 3 * scenario.settings.recovery_window + 10
+        if not self.run_until(startup, self._converged, check_every=0.01):
+            self._fail("the system did not converge after start-up")
+        idle_from, messages, cpu = self.now, self.counters.messages, self.counters.manager_cpu
+        self.run_until(self.now + 4 * period)
+        idle = self.now - idle_from
+        report.idle_messages_per_second = (self.counters.messages - messages) / idle
+        report.idle_manager_cpu_per_second = (self.counters.manager_cpu - cpu) / idle
+        # The clean phase, measured.
+        messages, cpu, began = self.counters.messages, self.counters.manager_cpu, self.now
+        for index in range(scenario.clean_activations):
+            self._sync_activation(index)
+        count = max(1, scenario.clean_activations)
+        report.messages_per_activation = (self.counters.messages - messages) / count
+        report.manager_cpu_per_activation = (self.counters.manager_cpu - cpu) / count
+        report.activation_time = (self.now - began) / count
+        # The fault phase.
+        self._faulty = True
+        self._script_faults()
+        self.run_until(self.now + scenario.faults.duration)
+        # The heal: no more faults; the scripted restarts still come (at most 5 s).
+        self._faulty = False
+        self._cut.clear()
+        self.run_until(self.now + 5.0)
+        if self.manager is None:
+            self.manager = self._start_manager(self.state_file)
+        healed = self.now
+        if not self.run_until(healed + scenario.converge_within, self._converged, 0.01):
+            manager = self.manager
+            lagging = [
+                n.name for n in self.nodes if n.protocol.applied_epoch != manager.state.epoch
+            ]
+            self._fail(
+                f"no convergence {scenario.converge_within:g} s after the heal: manager at "
+                f"epoch {manager.state.epoch}, {len(manager.live_nodes)} of {len(self.nodes)} "
+                f"live, lagging {lagging[:5]}"
+            )
+        report.time_to_converge = self.now - healed
+        # Everything asked of the manager that is still running is answered by now.
+        # (the fault phase's timeouts are 3 s at most; an atomic one waits twice).
+        self.run_until(self.now + 7.0, self._answered, check_every=0.05)
+        self._sync_activation(scenario.clean_activations)
+        for request, asked in self.commands.items():
+            if asked.answer is None and asked.manager_generation == self.manager_generation:
+                self._fail(f"request {request} ({asked.command}) was never answered")
+        report.commands = len(self.commands)
+        report.answers = sum(asked.answer is not None for asked in self.commands.values())
+        report.aborted_atomic = len(self.aborted)
+        report.messages = self.counters.messages
+        report.events = self._events
+        report.wall_time = time.perf_counter() - started
+        report.trace = self._trace.hexdigest()[:16]
+        return report
+
+    def _answered(self) -> bool:
+        generation = self.manager_generation
+        return all(
+            asked.answer is not None or asked.manager_generation != generation
+            for asked in self.commands.values()
+        )
+
+    def _announce(self, index: int) -> None:
+        node = self.nodes[index]
+        self._run_participant(index, node.protocol.announce(self.now))
+        self._wake(index, self.now + self.rng.random() * node.protocol.heartbeat_period)
+
+
+def _generation_of(state: LayerState) -> int:
+    """The manager generation that published `state` (its id is "m<generation>")."""
+    return int(state.manager_id[1:] or 0)
+
+
+def simulate(scenario: Scenario) -> SimulationReport:
+    """Run one scenario; raises `InvariantViolation` naming the seed if a guarantee broke."""
+    return Simulation(scenario).run()
+
+
+def sweep(
+    seeds: Sequence[int], participants: int, faults: Faults = Faults()
+) -> list[SimulationReport]:
+    return [simulate(Scenario(participants, seed, faults=faults)) for seed in seeds]
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(
+        prog="python -m contextros.protocol.simulation", description=__doc__.split("\n\n")[0]
+    )
+    parser.add_argument("--seed", type=int, default=0, help="the run to replay")
+    parser.add_argument("--seeds", type=int, default=1, help="run this many seeds from --seed")
+    parser.add_argument("--participants", type=int, default=100)
+    parser.add_argument("--loss", type=float, default=Faults.loss)
+    parser.add_argument("--duplication", type=float, default=Faults.duplication)
+    parser.add_argument("--crashes", type=int, default=Faults.crashes)
+    parser.add_argument("--partitions", type=int, default=Faults.partitions)
+    parser.add_argument("--manager-restarts", type=int, default=Faults.manager_restarts)
+    args = parser.parse_args(argv)
+    faults = Faults(
+        loss=args.loss,
+        duplication=args.duplication,
+        crashes=args.crashes,
+        partitions=args.partitions,
+        manager_restarts=args.manager_restarts,
+    )
+    failed = 0
+    for seed in range(args.seed, args.seed + args.seeds):
+        try:
+            report = simulate(Scenario(args.participants, seed, faults=faults))
+        except InvariantViolation as violation:
+            print(f"FAILED {violation}", file=sys.stderr)
+            failed += 1
+            continue
+        print(
+            f"seed {seed}: {args.participants} participants, {report.commands} commands "
+            f"({report.answers} answered, {report.aborted_atomic} atomic aborted), "
+            f"{report.messages_per_activation:.0f} messages and "
+            f"{report.manager_cpu_per_activation * 1e3:.2f} ms manager CPU per sync "
+            f"activation, converged {report.time_to_converge:.2f} s after the heal; "
+            f"{report.events} events in {report.wall_time:.1f} s; trace {report.trace}"
+        )
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,66 @@
+"""`WaitLoop`, the manager's lean replacement for rclpy's executor, serves every kind of
+entity a node has: timers, subscriptions, services, clients and guard conditions (real
+rclpy, one process, its own context)."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from rclpy.context import Context  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from std_msgs.msg import String  # noqa: E402
+from std_srvs.srv import Trigger  # noqa: E402
+
+from contextros.ros.wait_loop import WaitLoop  # noqa: E402
+
+
+@pytest.fixture
+def context() -> Iterator[Context]:
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        yield context
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def test_every_kind_of_entity_is_served(context: Context) -> None:
+    server = Node("wait_loop_server", context=context)
+    caller = Node("wait_loop_caller", context=context)
+    seen: dict[str, object] = {}
+
+    def serve(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = True, "served"
+        return response
+
+    server.create_service(Trigger, "wait_loop/trigger", serve)
+    server.create_subscription(String, "wait_loop/topic", lambda m: seen.update(msg=m.data), 10)
+    server.create_timer(0.01, lambda: seen.update(ticks=int(seen.get("ticks", 0)) + 1))  # type: ignore[call-overload]
+    guard = server.create_guard_condition(lambda: seen.update(guard=True))
+    publisher = caller.create_publisher(String, "wait_loop/topic", 10)
+    client = caller.create_client(Trigger, "wait_loop/trigger")
+    loop = WaitLoop([server, caller], context=context)
+    deadline = time.monotonic() + 10.0
+    future = None
+    guard.trigger()
+    while time.monotonic() < deadline:
+        loop.spin_once(0.05)
+        if future is None and client.service_is_ready():
+            future = client.call_async(Trigger.Request())
+        if publisher.get_subscription_count():
+            publisher.publish(String(data="hello"))
+        if future is not None and future.done() and "msg" in seen and seen.get("ticks", 0) >= 3:
+            break
+    assert future is not None and future.done(), "the service or the client was not served"
+    assert future.result().message == "served"
+    assert seen.get("msg") == "hello"
+    assert int(seen.get("ticks", 0)) >= 3  # type: ignore[call-overload]
+    assert seen.get("guard") is True
+    loop.shutdown()
+    server.destroy_node()
+    caller.destroy_node()
