@@ -110,6 +110,20 @@ class Decorator:
     at: Position
 
 
+@dataclass(frozen=True)
+class Guard:
+    """`when CONDITION` on a partial: the partial applies to a call only while CONDITION,
+    evaluated on that call's arguments, holds; otherwise the call goes on to the next
+    implementation of the chain (as if this layer had no partial there).
+
+    `text` is the condition as written, in the flavour's expression language (a Python
+    expression, a C++ expression); `at` is where it starts in the layer file.
+    """
+
+    text: str
+    at: Position
+
+
 @dataclass
 class Function:
     """A method implementation: in a layer (a partial) or in the base block.
@@ -129,6 +143,8 @@ class Function:
     decorators: tuple[Decorator, ...] = ()
     takes_instance: bool = True
     instance_name: str = "self"
+    # `when CONDITION` on a layer's partial; None for an unguarded one (and the base's).
+    guard: Guard | None = None
 
     @property
     def key(self) -> str:
