@@ -36,11 +36,17 @@ class _Partials:
     chain without the runtime's lock reads one consistent set, and a chain composed from
     a replaced partial can only be cached in the set it was composed from."""
 
-    __slots__ = ("chains", "functions", "uses")
+    __slots__ = ("chains", "functions", "guards", "uses")
 
-    def __init__(self, functions: dict[str, FunctionType], uses: dict[str, ProceedUse]) -> None:
+    def __init__(
+        self,
+        functions: dict[str, FunctionType],
+        uses: dict[str, ProceedUse],
+        guards: dict[str, Callable[..., object]],
+    ) -> None:
         self.functions = functions
         self.uses = uses
+        self.guards = guards  # by layer name, only for guarded partials
         self.chains: dict[tuple[str, ...], Callable[..., Any]] = {}
 
 
@@ -61,7 +67,7 @@ class LayeredFunction:
         self.base = base
         if base is not None:
             mark_base(base)
-        self._published = _Partials({}, {})
+        self._published = _Partials({}, {}, {})
         self.stable = copy_function(stub)
         self._freevars = stub.__code__.co_freevars
         self._head_key = fresh_key("head")
@@ -140,14 +146,29 @@ class LayeredFunction:
 
     # -- definition ----------------------------------------------------------------------
 
-    def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+    def partial(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[F], F]:
         """Decorator registering the partial implementation of this function for `layer`.
 
         Returns the layered function itself (for a layered classmethod or staticmethod,
         that descriptor), so the name stays bound to it in a class body or module. The
         partial may itself be decorated with @classmethod / @staticmethod, to match.
+
+        `when` is a guard: called with each call's arguments (as the partial would be);
+        while it returns false the partial is skipped and the call goes to the next
+        implementation of the chain, as if this layer had no partial here.
         """
         target = resolve(layer)
+        if when is not None and not callable(when):
+            raise LayerDefinitionError(
+                f"the guard (when=) of {self.qualname}'s partial for layer {target.name} "
+                f"must be callable with the call's arguments, got {when!r}"
+            )
 
         def register(function: F) -> F:
             plain: object = function
@@ -165,20 +186,32 @@ class LayeredFunction:
                     f"{self.qualname} already has a partial for layer {target.name} "
                     "(pass replace=True to redefine it)"
                 )
-            self._set_partial(target.name, plain)
+            self._set_partial(target.name, plain, when)
             return self.public  # type: ignore[return-value]
 
         return register
 
-    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+    def around(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[F], F]:
         """The same as `partial`: the partial runs around the rest of the chain and calls
         `proceed(...)` where the rest should run (ContextPy3's name for it)."""
-        return self.partial(layer, replace=replace)
+        return self.partial(layer, replace=replace, when=when)
 
-    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
+    def before(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[F], F]:
         """A partial that runs before the rest of the chain, with the same arguments; the
         rest then runs with those arguments and its result is the call's result."""
-        register = self.partial(layer, replace=replace)
+        register = self.partial(layer, replace=replace, when=when)
 
         def decorate(function: F) -> F:
             partial: Any = _before(_unwrapped(function), self.is_async)
@@ -186,14 +219,23 @@ class LayeredFunction:
 
         return decorate
 
-    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
-        """A partial that runs after the rest of the chain: it is called as
-        ``function(result, *args, **kwargs)`` with that result and the call's arguments,
+    def after(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[F], F]:
+        """A partial that runs after the rest of the chain: it is called with the call's
+        arguments (`self` first, for a method) and that result by keyword,
+        ``function(*args, result=result, **kwargs)`` (write ``def m(self, x, *, result)``),
         and what it returns is the call's result (return `result` to keep it)."""
-        register = self.partial(layer, replace=replace)
+        register = self.partial(layer, replace=replace, when=when)
 
         def decorate(function: F) -> F:
-            partial: Any = _after(_unwrapped(function), self.is_async)
+            plain = _unwrapped(function)
+            _check_after(plain, self.stable.__wrapped__, self.qualname, layer)  # type: ignore[attr-defined]
+            partial: Any = _after(plain, self.is_async)
             return register(partial)  # type: ignore[no-any-return]
 
         return decorate
@@ -207,20 +249,30 @@ class LayeredFunction:
             raise LayerDefinitionError(f"{self.qualname} has no partial for layer {name}")
         self._set_partial(name, None)
 
-    def _set_partial(self, name: str, function: FunctionType | None) -> None:
+    def _set_partial(
+        self,
+        name: str,
+        function: FunctionType | None,
+        guard: Callable[..., object] | None = None,
+    ) -> None:
         from contextros.core.runtime import RUNTIME
 
         use = analyse(function) if function is not None else None  # before publishing
         with RUNTIME.lock:
             current = self._published
             functions, uses = dict(current.functions), dict(current.uses)
+            guards = dict(current.guards)
+            guards.pop(name, None)
             if function is None or use is None:
                 del functions[name]
                 del uses[name]
             else:
                 functions[name] = function
                 uses[name] = use
-            self._published = _Partials(functions, uses)  # one assignment: all or nothing
+                if guard is not None:
+                    guards[name] = guard
+            # One assignment: all or nothing.
+            self._published = _Partials(functions, uses, guards)
             RUNTIME.rewire(self)
 
     @property
@@ -252,8 +304,14 @@ class LayeredFunction:
         following: Callable[..., Any] = (
             self.base if self.base is not None else self._exhausted(relevant[-1])
         )
+        # What a guarded partial that does not apply passes the call to: the same as its
+        # `proceed`, except below the innermost partial of a function without a base.
+        skipped: Callable[..., Any] = self.base if self.base is not None else self._missing()
         for name in reversed(relevant):
-            following = link(published.functions[name], published.uses[name], following)
+            linked = link(published.functions[name], published.uses[name], following)
+            guard = published.guards.get(name)
+            following = linked if guard is None else _guarded(guard, linked, skipped)
+            skipped = following
         return following
 
     def install(self, head: Callable[..., Any]) -> None:
@@ -392,8 +450,10 @@ class LayeredProperty(property):
         assert owner is not None
         return owner
 
-    def _refine(self, kind: str, layer: Layer | str, replace: bool) -> Callable[[Any], Any]:
-        register = getattr(self.__contextros__, kind)(layer, replace=replace)
+    def _refine(
+        self, kind: str, layer: Layer | str, replace: bool, when: Callable[..., object] | None
+    ) -> Callable[[Any], Any]:
+        register = getattr(self.__contextros__, kind)(layer, replace=replace, when=when)
 
         def add(function: Any) -> LayeredProperty:
             register(function.fget if isinstance(function, property) else function)
@@ -401,17 +461,41 @@ class LayeredProperty(property):
 
         return add
 
-    def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("partial", layer, replace)
+    def partial(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("partial", layer, replace, when)
 
-    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("around", layer, replace)
+    def around(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("around", layer, replace, when)
 
-    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("before", layer, replace)
+    def before(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("before", layer, replace, when)
 
-    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("after", layer, replace)
+    def after(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("after", layer, replace, when)
 
     def remove_partial(self, layer: Layer | str) -> None:
         self.__contextros__.remove_partial(layer)
@@ -450,18 +534,64 @@ def _before(function: FunctionType, is_async: bool) -> FunctionType:
     return _named_like(chosen, function)
 
 
+def _guarded(
+    guard: Callable[..., object], partial: Callable[..., Any], skipped: Callable[..., Any]
+) -> Callable[..., Any]:
+    """A guarded partial's place in a chain: the partial while the guard holds on the call's
+    arguments, else the next implementation (only guarded chains pay for the test)."""
+
+    def guarded(*args: Any, **kwargs: Any) -> Any:
+        if guard(*args, **kwargs):
+            return partial(*args, **kwargs)
+        return skipped(*args, **kwargs)
+
+    return guarded
+
+
+def _check_after(
+    function: FunctionType, layered: FunctionType, qualname: str, layer: object
+) -> None:
+    """After-advice takes the call's arguments in order, then the result by keyword
+    (`def m(self, x, *, result)`); the old form with the result first is refused."""
+    name = layer.name if isinstance(layer, Layer) else layer
+    code = function.__code__
+    positional = code.co_varnames[: code.co_posonlyargcount + code.co_argcount]
+    keywords = code.co_varnames[code.co_posonlyargcount : code.co_argcount + code.co_kwonlyargcount]
+    own = layered.__code__
+    own_names = own.co_varnames[: own.co_argcount + own.co_kwonlyargcount]
+    has_kwargs = bool(code.co_flags & inspect.CO_VARKEYWORDS)
+    where = f"after-advice of {qualname} for layer {name} ({function.__qualname__})"
+    if "result" in own_names:
+        raise LayerDefinitionError(
+            f"{where}: {qualname} has a parameter named 'result' itself, so the result "
+            "cannot be passed by keyword; write a partial that calls proceed(...) instead"
+        )
+    if positional[:1] == ("result",) and own_names[:1] != ("result",):
+        fixed = ", ".join([*positional[1:], "*", "result"])
+        raise LayerDefinitionError(
+            f"{where} takes the result first (the old form): the result is now passed by "
+            f"keyword after the call's arguments, `self` first: write "
+            f"def {function.__name__}({fixed})"
+        )
+    if "result" not in keywords and not has_kwargs:
+        raise LayerDefinitionError(
+            f"{where} has no parameter 'result': after-advice receives the call's arguments "
+            f"and then the result by keyword, e.g. def {function.__name__}(self, x, *, result)"
+        )
+
+
 def _after(function: FunctionType, is_async: bool) -> FunctionType:
     if is_async:
 
         async def after_async(*args: Any, **kwargs: Any) -> Any:
-            result = function(await proceed(*args, **kwargs), *args, **kwargs)
+            result = function(*args, result=await proceed(*args, **kwargs), **kwargs)
             return (await result) if inspect.isawaitable(result) else result
 
         chosen: FunctionType = after_async  # type: ignore[assignment]
     else:
 
         def after(*args: Any, **kwargs: Any) -> Any:
-            return function(proceed(*args, **kwargs), *args, **kwargs)
+            return function(*args, result=proceed(*args, **kwargs), **kwargs)
 
         chosen = after  # type: ignore[assignment]
     return _named_like(chosen, function)
