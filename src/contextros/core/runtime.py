@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from contextros.core import configuration as rules
+from contextros.core.composition import LayeredFunction, layered_function_of
 from contextros.core.configuration import Configuration
-from contextros.core.layer import Layer
-from contextros.core.layered import LayeredFunction
+from contextros.core.layer import DEFINITIONS, Layer
 from contextros.errors import HookError, LayerDefinitionError, LayerError, RelationError
 
 log = logging.getLogger("contextros")
@@ -433,8 +433,6 @@ class Receivers:
         self._rebuild()
 
     def _mark(self, classes: list[type]) -> None:
-        from contextros.core.layered import layered_function_of
-
         seen: set[type] = set()
         for cls in classes:
             for klass in getattr(cls, "__mro__", (cls,)):
@@ -545,8 +543,6 @@ class Runtime:
         """Deactivate `layer` (if decisively active), drop its partials from every layered
         function and forget its definition. Returns the qualnames of the functions it
         refined. A RelationError from the deactivation leaves everything as it was."""
-        from contextros.core import registry
-
         with self.lock:
             if layer in self.active:
                 if self._critical_depth:
@@ -562,7 +558,7 @@ class Runtime:
                 if layer.name in function.partials:
                     function.remove_partial(layer.name)
                     refined.append(function.qualname)
-            registry.unregister(layer.name)
+            DEFINITIONS.unregister(layer.name)
             return tuple(sorted(refined))
 
     def _reinstall_all(self) -> None:
@@ -730,9 +726,7 @@ class Runtime:
 
 
 def _run_hook(layer: Layer, kind: str) -> None:
-    from contextros.core import registry
-
-    definition = registry.find(layer.name) or layer
+    definition = DEFINITIONS.find(layer.name) or layer
     hook = getattr(definition, kind)
     if hook is None:
         return

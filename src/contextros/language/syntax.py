@@ -12,25 +12,27 @@ what its back end needs (Python's `ast` nodes, the C++ text spans).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from contextros.language.bindings import LifecycleBinding, ParameterBinding
-    from contextros.language.rules import RuleDecl
+from contextros.language.bindings import LifecycleBinding, ParameterBinding
+from contextros.language.positions import Position, Ref
+from contextros.language.rules import RuleDecl
 
-
-@dataclass(frozen=True)
-class Position:
-    line: int
-    col: int
-
-
-@dataclass(frozen=True)
-class Ref:
-    """A layer named in a relation or a group, where it was named."""
-
-    name: str
-    at: Position
+__all__ = [
+    "BaseBlock",
+    "Decorator",
+    "Function",
+    "GroupDecl",
+    "Guard",
+    "Hook",
+    "LayerDecl",
+    "LayerFile",
+    "Position",
+    "ProceedCall",
+    "Ref",
+    "Signature",
+    "SourceLine",
+    "char_of_byte",
+]
 
 
 @dataclass(frozen=True)

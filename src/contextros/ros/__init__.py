@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from contextros import _lazy_exports
+from contextros._exports import lazy_exports
 
 if TYPE_CHECKING:
     from contextros.protocol import ActivationFailed, ActivationResult, ManagerError
@@ -47,7 +47,7 @@ _LAZY = {
 }
 
 
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY, globals())
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 
 __all__ = [
