@@ -10,7 +10,7 @@ from __future__ import annotations
 import inspect
 from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
-from types import FunctionType, MappingProxyType
+from types import CodeType, FunctionType, MappingProxyType
 from typing import Any, Protocol, TypeVar
 
 from contextros.core.configuration import Configuration
@@ -99,50 +99,22 @@ class LayeredFunction:
         self._exact_code = trampoline_code(
             [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
         )
-        self._scoped_code = trampoline_code(
-            [
-                f"__contextros_scope = {self._scope_key}.get()",
-                "if __contextros_scope is None:",
-                f"    if not {self._runtime_key}._live_scopes:",
-                f"        {self._runtime_key}.back_to_direct({self._self_key})",
-                f"    {call_head}",
-                f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
-                "if __contextros_head is None:",
-                f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                "return __contextros_head(*args, **kwargs)",
-            ],
-            self._freevars,
-            self.qualname,
-        )
         self._objects_key = fresh_key("objects")
         self._classes_key = fresh_key("classes")
         # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
         self.receiver_kind = ""
-        self._receiver_code = {
-            kind: trampoline_code(
-                [
-                    "if args:",
-                    f"    __contextros_r = {self._objects_key}.get(id(args[0]))",
-                    "    if __contextros_r is None:",
-                    f"        __contextros_r = {self._classes_key}[{receiver}]",
-                    "else:",
-                    "    __contextros_r = None",
-                    f"__contextros_scope = {self._scope_key}.get()",
-                    "if __contextros_r is not None:",
-                    f"    return __contextros_r.head({self._self_key}, __contextros_scope)"
-                    "(*args, **kwargs)",
-                    "if __contextros_scope is None:",
-                    f"    {call_head}",
-                    f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
-                    "if __contextros_head is None:",
-                    f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                    "return __contextros_head(*args, **kwargs)",
-                ],
-                self._freevars,
-                self.qualname,
-            )
-            for kind, receiver in (("object", "type(args[0])"), ("class", "args[0]"))
-        }
+        # The scoped and per-receiver dispatchers: taking *args/**kwargs (any partials),
+        # and passing each parameter straight on, which saves building a tuple and a dict
+        # per call but is exact only while every implementation takes the stub's parameters
+        # with the same defaults (`_uniform`).
+        self._scoped_code = self._scoped_dispatcher("*args, **kwargs", "*args, **kwargs")
+        self._receiver_code = self._receiver_dispatchers("*args, **kwargs", "*args, **kwargs", "")
+        self._scoped_exact_code = self._scoped_dispatcher(parameters, arguments)
+        first = stub.__code__.co_varnames[:1] if stub.__code__.co_argcount else ()
+        self._receiver_exact_code = (
+            self._receiver_dispatchers(parameters, arguments, first[0]) if first else None
+        )
+        self._uniform = True
         self.stable.__wrapped__ = stub  # type: ignore[attr-defined]
         self.stable.partial = self.partial  # type: ignore[attr-defined]
         self.stable.before = self.before  # type: ignore[attr-defined]
@@ -153,6 +125,72 @@ class LayeredFunction:
         # A classmethod or staticmethod wrapping `stable`, when it was layered as one.
         self.descriptor: classmethod[Any, Any, Any] | staticmethod[Any, Any] | None = None
         self.global_head: Callable[..., Any] = self._missing()
+
+    def _scoped_dispatcher(self, parameters: str, arguments: str) -> CodeType:
+        """Calls read the caller's scope first; one with no scope in a process with none
+        alive puts the direct path back."""
+        return trampoline_code(
+            [
+                f"__contextros_scope = {self._scope_key}.get()",
+                "if __contextros_scope is None:",
+                f"    if not {self._runtime_key}._live_scopes:",
+                f"        {self._runtime_key}.back_to_direct({self._self_key})",
+                f"    return {self._head_key}({arguments})",
+                "try:",
+                f"    __contextros_head = __contextros_scope.heads[{self._self_key}]",
+                "except KeyError:",
+                f"    __contextros_head = __contextros_scope.head({self._self_key})",
+                f"return __contextros_head({arguments})",
+            ],
+            self._freevars,
+            self.qualname,
+            parameters,
+        )
+
+    def _receiver_dispatchers(
+        self, parameters: str, arguments: str, receiver: str
+    ) -> dict[str, CodeType]:
+        """Calls look up their receiver's own layers first (per-object, then class-wide),
+        then the caller's scope. `receiver` names the first parameter ("": `args[0]`)."""
+        codes: dict[str, CodeType] = {}
+        for kind in ("object", "class"):
+            target = receiver or "args[0]"
+            cls = f"type({target})" if kind == "object" else target
+            find = [
+                f"__contextros_r = {self._objects_key}.get(id({target}))",
+                "if __contextros_r is None:",
+                f"    __contextros_r = {self._classes_key}[{cls}]",
+            ]
+            if not receiver:
+                find = ["__contextros_r = None", "if args:", *[f"    {line}" for line in find]]
+            codes[kind] = trampoline_code(
+                [
+                    *find,
+                    # No scope alive anywhere (the usual case): no context variable to read.
+                    f"__contextros_scope = {self._scope_key}.get() "
+                    f"if {self._runtime_key}._live_scopes else None",
+                    "if __contextros_r is not None:",
+                    "    if __contextros_scope is None:",
+                    "        try:",
+                    f"            __contextros_head = __contextros_r.heads[{self._self_key}]",
+                    "        except KeyError:",
+                    f"            __contextros_head = __contextros_r.head({self._self_key}, None)",
+                    f"        return __contextros_head({arguments})",
+                    f"    return __contextros_r.head({self._self_key}, __contextros_scope)"
+                    f"({arguments})",
+                    "if __contextros_scope is None:",
+                    f"    return {self._head_key}({arguments})",
+                    "try:",
+                    f"    __contextros_head = __contextros_scope.heads[{self._self_key}]",
+                    "except KeyError:",
+                    f"    __contextros_head = __contextros_scope.head({self._self_key})",
+                    f"return __contextros_head({arguments})",
+                ],
+                self._freevars,
+                self.qualname,
+                parameters,
+            )
+        return codes
 
     def __repr__(self) -> str:
         return f"<layered {self.qualname} partials={sorted(self.partials)}>"
@@ -289,6 +327,10 @@ class LayeredFunction:
                     guards[name] = guard
             # One assignment: all or nothing.
             self._published = _Partials(functions, uses, guards)
+            implementations = [*functions.values(), *([self.base] if self.base else [])]
+            self._uniform = all(
+                same_parameters(self.stable, self._signature, f) for f in implementations
+            )
             self._host.rewire(self)
 
     @property
@@ -350,7 +392,7 @@ class LayeredFunction:
         namespace[self._scope_key] = runtime.scope
         namespace[self._runtime_key] = runtime
         namespace[self._self_key] = self
-        self.stable.__code__ = self._scoped_code
+        self.stable.__code__ = self._scoped_exact_code if self._uniform else self._scoped_code
 
     def install_receiver(self, runtime: Any) -> None:
         """Make calls of `stable` look up their receiver's own layers first (per-object
@@ -360,8 +402,10 @@ class LayeredFunction:
         namespace[self._scope_key] = runtime.scope
         namespace[self._objects_key] = runtime.receivers.objects
         namespace[self._classes_key] = runtime.receivers.classes
+        namespace[self._runtime_key] = runtime
         namespace[self._self_key] = self
-        self.stable.__code__ = self._receiver_code[self.receiver_kind]
+        exact = self._receiver_exact_code if self._uniform else None
+        self.stable.__code__ = (exact or self._receiver_code)[self.receiver_kind]
 
     def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname
