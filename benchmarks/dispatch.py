@@ -32,6 +32,10 @@ TARGETS = {
     "three partials, proceed": None,
 }
 SCOPED = "one partial, proceeds, scoped (with activated)"
+# The floor of any dispatcher in Python that finds its chain per call: the same chain behind
+# one more plain Python frame, with no look-up at all (hand-written, for reference).
+FLOOR = "reference: one partial, proceeds, behind one more plain frame"
+SLOW_PATH_TARGET = 3.0  # scoped and per-object calls (issue 18)
 # A class that does not use per-object activation, while another class does.
 UNAFFECTED = {
     "no active layer, another class has per-object layers": 1.2,
@@ -77,6 +81,19 @@ class Elsewhere:
         return proceed(self, x) + 1
 
 
+def _floor_base(self: object, x: int) -> int:
+    return x + 1
+
+
+def _floor_partial(self: object, x: int) -> int:
+    return _floor_base(self, x) + 1
+
+
+class Floor:
+    def step(self, x: int) -> int:
+        return _floor_partial(self, x)
+
+
 class NoProceed:
     @layered
     def step(self, x: int) -> int:
@@ -103,8 +120,16 @@ def _contextros_cases() -> dict[str, float]:
         results["plain"] = min(results["plain"], timed["plain"])
     set_active([])
     with activated(L1):  # the context-variable path, as in a `with` block
-        timed = ns_per_call({SCOPED: ("o.step(1)", {"o": layered_obj})})
+        timed = ns_per_call(
+            {
+                "plain": ("o.step(1)", {"o": plain}),
+                SCOPED: ("o.step(1)", {"o": layered_obj}),
+                FLOOR: ("o.step(1)", {"o": Floor()}),
+            }
+        )
     results[SCOPED] = timed[SCOPED]
+    results[FLOOR] = timed[FLOOR]
+    results["plain"] = min(results["plain"], timed["plain"])
     elsewhere = Elsewhere()
     activate_for(elsewhere, L1)
     for case, layers in zip(UNAFFECTED, [[], [L1]], strict=True):
@@ -115,7 +140,11 @@ def _contextros_cases() -> dict[str, float]:
         results[case] = timed[case]
         results["plain"] = min(results["plain"], timed["plain"])
     set_active([])
-    results[PER_OBJECT] = ns_per_call({PER_OBJECT: ("o.step(1)", {"o": elsewhere})})[PER_OBJECT]
+    timed = ns_per_call(
+        {"plain": ("o.step(1)", {"o": plain}), PER_OBJECT: ("o.step(1)", {"o": elsewhere})}
+    )
+    results[PER_OBJECT] = timed[PER_OBJECT]
+    results["plain"] = min(results["plain"], timed["plain"])
     reset_for(elsewhere)
     return results
 
@@ -176,7 +205,13 @@ def run() -> list[dict[str, Any]]:
     theirs = _contextpy3_cases()
     plain = ours["plain"]
     rows: list[dict[str, Any]] = [{"case": "plain method", "ns": plain, "ratio": 1.0}]
-    cases = [*TARGETS.items(), (SCOPED, None), *UNAFFECTED.items(), (PER_OBJECT, None)]
+    cases = [
+        *TARGETS.items(),
+        (SCOPED, SLOW_PATH_TARGET),
+        *UNAFFECTED.items(),
+        (PER_OBJECT, SLOW_PATH_TARGET),
+        (FLOOR, None),
+    ]
     for case, target in cases:
         row: dict[str, Any] = {
             "case": case,
