@@ -5,7 +5,10 @@ Cases: no active layer; one active partial that does not proceed; one that proce
 the base; three stacked partials that proceed. Then the price of the newer features for
 a class that does not use them: the same calls while another class has a layer active
 for one of its objects (per-object activation puts only that class's methods on a
-per-receiver path), and, for reference, that per-receiver path itself.
+per-receiver path), and that per-receiver path itself. Scoped and per-object calls have a
+target of 3x a plain call (issue 18); the last row, for reference, is the floor of any
+dispatcher written in Python that finds its chain per call: the same proceeding chain
+behind one more plain function frame, with no look-up at all.
 """
 
 from __future__ import annotations
