@@ -2,8 +2,9 @@
 
 Same workload everywhere: a method computing ``x + 1`` (partials add their own ``+ 1``).
 Cases: no active layer; one active partial that does not proceed; one that proceeds to
-the base; three stacked partials that proceed. Then the price of the newer features for
-a class that does not use them: the same calls while another class has a layer active
+the base; three stacked partials that proceed; one that proceeds behind a guard that holds
+(the guard is a call of its own, and only guarded chains pay for it). Then the price of the
+newer features for a class that does not use them: the same calls while another class has a layer active
 for one of its objects (per-object activation puts only that class's methods on a
 per-receiver path), and that per-receiver path itself. Scoped and per-object calls have a
 target of 3x a plain call (issue 18); the last row, for reference, is the floor of any
@@ -39,6 +40,7 @@ SCOPED = "one partial, proceeds, scoped (with activated)"
 # one more plain Python frame, with no look-up at all (hand-written, for reference).
 FLOOR = "reference: one partial, proceeds, behind one more plain frame"
 SLOW_PATH_TARGET = 3.0  # scoped and per-object calls (issue 18)
+GUARDED = "one guarded partial (guard true), proceeds"  # what a guard costs (issue 18)
 # A class that does not use per-object activation, while another class does.
 UNAFFECTED = {
     "no active layer, another class has per-object layers": 1.2,
@@ -84,6 +86,16 @@ class Elsewhere:
         return proceed(self, x) + 1
 
 
+class Guarded:
+    @layered
+    def step(self, x: int) -> int:
+        return x + 1
+
+    @step.partial(L1, when=lambda self, x: x > 0)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+
 def _floor_base(self: object, x: int) -> int:
     return x + 1
 
@@ -115,6 +127,7 @@ def _contextros_cases() -> dict[str, float]:
         ("one partial, no proceed", [L1], no_proceed),
         ("one partial, proceeds", [L1], layered_obj),
         ("three partials, proceed", [L1, L2, L3], layered_obj),
+        (GUARDED, [L1], Guarded()),
     ]:
         set_active(layers)
         timed = ns_per_call({"plain": ("o.step(1)", {"o": plain}), case: ("o.step(1)", {"o": obj})})
@@ -210,6 +223,7 @@ def run() -> list[dict[str, Any]]:
     rows: list[dict[str, Any]] = [{"case": "plain method", "ns": plain, "ratio": 1.0}]
     cases = [
         *TARGETS.items(),
+        (GUARDED, None),
         (SCOPED, SLOW_PATH_TARGET),
         *UNAFFECTED.items(),
         (PER_OBJECT, SLOW_PATH_TARGET),

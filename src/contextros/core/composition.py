@@ -368,9 +368,43 @@ class LayeredFunction:
         for name in reversed(relevant):
             linked = link(published.functions[name], published.uses[name], following)
             guard = published.guards.get(name)
-            following = linked if guard is None else _guarded(guard, linked, skipped)
-            skipped = following
+            if guard is not None:
+                linked = self._guarded(published.functions[name], guard, linked, skipped)
+            following = skipped = linked
         return following
+
+    def _guarded(
+        self,
+        partial: FunctionType,
+        guard: Callable[..., object],
+        linked: Callable[..., Any],
+        skipped: Callable[..., Any],
+    ) -> FunctionType:
+        """A guarded partial's place in a chain: the partial while the guard holds on the
+        call's arguments, else the next implementation. Generated with the partial's own
+        parameters and defaults, in the stable function's module, so that the stable
+        function can take its code (no trampoline, no tuple or dict per call)."""
+        parameters, arguments = passing_through(partial.__code__)
+        keys = {kind: fresh_key(kind) for kind in ("guard", "partial", "skipped")}
+        namespace = self.stable.__globals__
+        namespace[keys["guard"]] = guard
+        namespace[keys["partial"]] = linked
+        namespace[keys["skipped"]] = skipped
+        code = trampoline_code(
+            [
+                f"if {keys['guard']}({arguments}):",
+                f"    return {keys['partial']}({arguments})",
+                f"return {keys['skipped']}({arguments})",
+            ],
+            self._freevars,
+            self.qualname,
+            parameters,
+        )
+        guarded = FunctionType(
+            code, namespace, partial.__name__, partial.__defaults__, self.stable.__closure__
+        )
+        guarded.__kwdefaults__ = partial.__kwdefaults__
+        return guarded
 
     def install(self, head: Callable[..., Any]) -> None:
         """Make calls of `stable` run `head`: by taking its code, else via a trampoline
@@ -475,20 +509,6 @@ def _before(function: FunctionType, is_async: bool) -> FunctionType:
 
         chosen = before  # type: ignore[assignment]
     return _named_like(chosen, function)
-
-
-def _guarded(
-    guard: Callable[..., object], partial: Callable[..., Any], skipped: Callable[..., Any]
-) -> Callable[..., Any]:
-    """A guarded partial's place in a chain: the partial while the guard holds on the call's
-    arguments, else the next implementation (only guarded chains pay for the test)."""
-
-    def guarded(*args: Any, **kwargs: Any) -> Any:
-        if guard(*args, **kwargs):
-            return partial(*args, **kwargs)
-        return skipped(*args, **kwargs)
-
-    return guarded
 
 
 def _check_after(
