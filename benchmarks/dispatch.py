@@ -1,15 +1,15 @@
 """Dispatch cost of the COP core, side by side with a plain call and with ContextPy3.
 
 Same workload everywhere: a method computing ``x + 1`` (partials add their own ``+ 1``).
-Cases: no active layer; one active partial that does not proceed; one that proceeds to
-the base; three stacked partials that proceed; one that proceeds behind a guard that holds
-(the guard is a call of its own, and only guarded chains pay for it). Then the price of the
-newer features for a class that does not use them: the same calls while another class has a layer active
-for one of its objects (per-object activation puts only that class's methods on a
+Cases: no active layer; one active partial that does not proceed; one that proceeds to the
+base; three stacked partials that proceed; one that proceeds behind a guard that holds (the
+guard is a call of its own, and only guarded chains pay for it). Then the price of the newer
+features for a class that does not use them: the same calls while another class has a layer
+active for one of its objects (per-object activation puts only that class's methods on a
 per-receiver path), and that per-receiver path itself. Scoped and per-object calls have a
 target of 3x a plain call (issue 18); the last row, for reference, is the floor of any
-dispatcher written in Python that finds its chain per call: the same proceeding chain
-behind one more plain function frame, with no look-up at all.
+dispatcher written in Python that finds its chain per call: the same proceeding chain behind
+one more plain function frame, with no look-up at all.
 """
 
 from __future__ import annotations
