@@ -1,11 +1,15 @@
 """Dispatch cost of the COP core, side by side with a plain call and with ContextPy3.
 
 Same workload everywhere: a method computing ``x + 1`` (partials add their own ``+ 1``).
-Cases: no active layer; one active partial that does not proceed; one that proceeds to
-the base; three stacked partials that proceed. Then the price of the newer features for
-a class that does not use them: the same calls while another class has a layer active
-for one of its objects (per-object activation puts only that class's methods on a
-per-receiver path), and, for reference, that per-receiver path itself.
+Cases: no active layer; one active partial that does not proceed; one that proceeds to the
+base; three stacked partials that proceed; one that proceeds behind a guard that holds (the
+guard is a call of its own, and only guarded chains pay for it). Then the price of the newer
+features for a class that does not use them: the same calls while another class has a layer
+active for one of its objects (per-object activation puts only that class's methods on a
+per-receiver path), and that per-receiver path itself. Scoped and per-object calls have a
+target of 3x a plain call (issue 18); the last row, for reference, is the floor of any
+dispatcher written in Python that finds its chain per call: the same proceeding chain behind
+one more plain function frame, with no look-up at all.
 """
 
 from __future__ import annotations
@@ -32,6 +36,11 @@ TARGETS = {
     "three partials, proceed": None,
 }
 SCOPED = "one partial, proceeds, scoped (with activated)"
+# The floor of any dispatcher in Python that finds its chain per call: the same chain behind
+# one more plain Python frame, with no look-up at all (hand-written, for reference).
+FLOOR = "reference: one partial, proceeds, behind one more plain frame"
+SLOW_PATH_TARGET = 3.0  # scoped and per-object calls (issue 18)
+GUARDED = "one guarded partial (guard true), proceeds"  # what a guard costs (issue 18)
 # A class that does not use per-object activation, while another class does.
 UNAFFECTED = {
     "no active layer, another class has per-object layers": 1.2,
@@ -77,6 +86,29 @@ class Elsewhere:
         return proceed(self, x) + 1
 
 
+class Guarded:
+    @layered
+    def step(self, x: int) -> int:
+        return x + 1
+
+    @step.partial(L1, when=lambda self, x: x > 0)
+    def step(self, x: int) -> int:
+        return proceed(self, x) + 1
+
+
+def _floor_base(self: object, x: int) -> int:
+    return x + 1
+
+
+def _floor_partial(self: object, x: int) -> int:
+    return _floor_base(self, x) + 1
+
+
+class Floor:
+    def step(self, x: int) -> int:
+        return _floor_partial(self, x)
+
+
 class NoProceed:
     @layered
     def step(self, x: int) -> int:
@@ -95,6 +127,7 @@ def _contextros_cases() -> dict[str, float]:
         ("one partial, no proceed", [L1], no_proceed),
         ("one partial, proceeds", [L1], layered_obj),
         ("three partials, proceed", [L1, L2, L3], layered_obj),
+        (GUARDED, [L1], Guarded()),
     ]:
         set_active(layers)
         timed = ns_per_call({"plain": ("o.step(1)", {"o": plain}), case: ("o.step(1)", {"o": obj})})
@@ -103,8 +136,16 @@ def _contextros_cases() -> dict[str, float]:
         results["plain"] = min(results["plain"], timed["plain"])
     set_active([])
     with activated(L1):  # the context-variable path, as in a `with` block
-        timed = ns_per_call({SCOPED: ("o.step(1)", {"o": layered_obj})})
+        timed = ns_per_call(
+            {
+                "plain": ("o.step(1)", {"o": plain}),
+                SCOPED: ("o.step(1)", {"o": layered_obj}),
+                FLOOR: ("o.step(1)", {"o": Floor()}),
+            }
+        )
     results[SCOPED] = timed[SCOPED]
+    results[FLOOR] = timed[FLOOR]
+    results["plain"] = min(results["plain"], timed["plain"])
     elsewhere = Elsewhere()
     activate_for(elsewhere, L1)
     for case, layers in zip(UNAFFECTED, [[], [L1]], strict=True):
@@ -115,7 +156,11 @@ def _contextros_cases() -> dict[str, float]:
         results[case] = timed[case]
         results["plain"] = min(results["plain"], timed["plain"])
     set_active([])
-    results[PER_OBJECT] = ns_per_call({PER_OBJECT: ("o.step(1)", {"o": elsewhere})})[PER_OBJECT]
+    timed = ns_per_call(
+        {"plain": ("o.step(1)", {"o": plain}), PER_OBJECT: ("o.step(1)", {"o": elsewhere})}
+    )
+    results[PER_OBJECT] = timed[PER_OBJECT]
+    results["plain"] = min(results["plain"], timed["plain"])
     reset_for(elsewhere)
     return results
 
@@ -176,7 +221,14 @@ def run() -> list[dict[str, Any]]:
     theirs = _contextpy3_cases()
     plain = ours["plain"]
     rows: list[dict[str, Any]] = [{"case": "plain method", "ns": plain, "ratio": 1.0}]
-    cases = [*TARGETS.items(), (SCOPED, None), *UNAFFECTED.items(), (PER_OBJECT, None)]
+    cases = [
+        *TARGETS.items(),
+        (GUARDED, None),
+        (SCOPED, SLOW_PATH_TARGET),
+        *UNAFFECTED.items(),
+        (PER_OBJECT, SLOW_PATH_TARGET),
+        (FLOOR, None),
+    ]
     for case, target in cases:
         row: dict[str, Any] = {
             "case": case,

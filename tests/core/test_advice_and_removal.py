@@ -39,7 +39,7 @@ class Arm:
         self.log.append(f"before {x}")
 
     @move.after(Doubled)
-    def move(result: int, self, x: int) -> int:
+    def move(self, x: int, *, result: int) -> int:
         self.log.append(f"after {result}")
         return result * 2
 
@@ -81,7 +81,7 @@ def test_async_before_and_after() -> None:
         seen.append(x)
 
     @fetch.after(Doubled)
-    def fetch(result: int, x: int) -> int:
+    def fetch(x: int, *, result: int) -> int:
         return result * 2
 
     activate(Logged, Doubled)
@@ -148,3 +148,41 @@ def test_removing_a_required_layer_is_refused_and_changes_nothing() -> None:
     assert layer_named("Footing") == Base_
     with critical(), pytest.raises(LayerDefinitionError, match="critical section"):
         remove_layer("Climbing")
+
+
+def test_after_advice_in_the_old_form_is_refused_with_the_new_one_to_write() -> None:
+    @layered
+    def move(x: int) -> int:
+        return x
+
+    with pytest.raises(LayerDefinitionError, match=r"result first .*def move\(x, \*, result\)"):
+
+        @move.after(Doubled)
+        def move(result: int, x: int) -> int:
+            return result
+
+
+def test_after_advice_without_a_result_parameter_is_refused() -> None:
+    @layered
+    def move(x: int) -> int:
+        return x
+
+    with pytest.raises(LayerDefinitionError, match="no parameter 'result'"):
+
+        @move.after(Doubled)
+        def move(x: int) -> int:
+            return x
+
+
+def test_after_advice_may_take_the_result_in_its_keywords() -> None:
+    class Arm:
+        @layered
+        def move(self, x: int) -> int:
+            return x
+
+        @move.after(Doubled)
+        def move(self, x: int, **extra: int) -> int:
+            return extra["result"] + 1
+
+    activate(Doubled)
+    assert Arm().move(4) == 5

@@ -51,26 +51,35 @@ def test_compile_writes_the_module(tmp_path: Path, capsys: pytest.CaptureFixture
     assert capsys.readouterr().err == ""
 
 
-def test_compiled_output_does_not_depend_on_the_working_directory(
-    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+def test_compiled_output_does_not_depend_on_the_working_directory_nor_on_the_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Reproducible builds (issue 12): the path as typed never reaches the module."""
+    """Reproducible builds (issues 12, 18): neither the path as typed nor the output's
+    directory (`-o DIR/x.py`, `-o -`) reaches the module."""
     (tmp_path / "src").mkdir()
-    (tmp_path / "build").mkdir()
+    (tmp_path / "build" / "deep").mkdir(parents=True)
     source = tmp_path / "src" / "cleaner.layers"
     shutil.copy(FIXTURES / "cleaner.layers", source)
     outputs = []
     for cwd, typed_source, typed_output in [
         (tmp_path, "src/cleaner.layers", "build/a.py"),
         (tmp_path / "src", "cleaner.layers", "../build/b.py"),
-        (tmp_path / "build", str(source), str(tmp_path / "build" / "c.py")),
+        (tmp_path / "build", str(source), str(tmp_path / "build" / "deep" / "c.py")),
+        (tmp_path / "src", "cleaner.layers", "d.py"),
+        (tmp_path / "build" / "deep", "../../src/cleaner.layers", "-"),
+        (tmp_path, "src/cleaner.layers", None),
     ]:
         monkeypatch.chdir(cwd)
-        assert main(["compile", typed_source, "-o", typed_output]) == 0
-        outputs.append((cwd / typed_output).read_text())
-    assert outputs[0] == outputs[1] == outputs[2]
-    assert '"../src/cleaner.layers"' in outputs[0]
-    assert str(tmp_path) not in outputs[0]
+        capsys.readouterr()
+        assert main(["compile", typed_source, *(["-o", typed_output] if typed_output else [])]) == 0
+        if typed_output == "-":
+            outputs.append(capsys.readouterr().out)
+        else:
+            written = cwd / typed_output if typed_output else tmp_path / "src" / "cleaner.py"
+            outputs.append(written.read_text())
+    assert all(output == outputs[0] for output in outputs)
+    assert outputs[0] == (GOLDEN / "cleaner.py.golden").read_text()
+    assert str(tmp_path) not in outputs[0] and "src/" not in outputs[0]
 
 
 def test_check_refuses_a_file_that_is_not_a_layer_file(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -125,13 +124,11 @@ def _activation_warnings(path: Path, activation: list[str], language: str | None
     return check_activation_order(layer_file, activation)
 
 
-def _shown_path(source: Path, output: Path | None) -> str:
-    """How the compiled module names its source: relative to the module's own directory
-    (the bare file name when they sit side by side; for stdout too), never as typed on
-    the command line, so that the output does not depend on the working directory."""
-    if output is None:
-        return source.name
-    return Path(os.path.relpath(source.resolve(), output.resolve().parent)).as_posix()
+def _shown_path(source: Path) -> str:
+    """How the compiled module names its source: by the bare file name, never as typed on
+    the command line nor relative to the output, so that the module is the same whatever
+    the working directory and `-o` (a file in any directory, or `-`)."""
+    return source.name
 
 
 def run_compile(args: argparse.Namespace) -> int:
@@ -155,7 +152,7 @@ def run_compile(args: argparse.Namespace) -> int:
         print(warning.render(), file=sys.stderr)
     default = source_path.with_name(f"{stem_of(source_path)}.py")
     output = None if args.output == "-" else Path(args.output or default)
-    shown = _shown_path(source_path, output)
+    shown = _shown_path(source_path)
     if shown != args.file:
         compiled = compile_source(source, shown)
     if output is None:

@@ -9,15 +9,14 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Sequence
 
-from contextros.core import registry
-from contextros.core.layer import Layer
+from contextros.core.layer import DEFINITIONS, Layer
 from contextros.errors import RelationError
 
 Configuration = tuple[Layer, ...]
 
 
 def _definition(layer: Layer) -> Layer:
-    return registry.find(layer.name) or layer
+    return DEFINITIONS.find(layer.name) or layer
 
 
 def plan(

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 
-from contextros.core import registry
+from contextros.core.registry import Registry
 from contextros.errors import LayerDefinitionError
 
 Hook = Callable[[], object]
@@ -104,7 +104,7 @@ class Layer:
         self.group = group
         self.on_activate = on_activate
         self.on_deactivate = on_deactivate
-        registry.register(self)
+        DEFINITIONS.register(self)
 
     def __eq__(self, other: object) -> bool:
         if isinstance(other, Layer):
@@ -121,20 +121,24 @@ class Layer:
         return self.name
 
 
+# The current definition of each layer name in this process.
+DEFINITIONS: Registry[Layer] = Registry()
+
+
 def layer_named(name: str) -> Layer:
     """The registered layer called `name` (UnknownLayerError names the known ones)."""
-    return registry.lookup(name)
+    return DEFINITIONS.lookup(name)
 
 
 def defined_layers() -> tuple[Layer, ...]:
     """Every layer defined in this process (the current definition of each name), by name."""
-    return tuple(registry.lookup(name) for name in registry.names())
+    return tuple(DEFINITIONS.lookup(name) for name in DEFINITIONS.names())
 
 
 def resolve(layer: Layer | str) -> Layer:
     """A layer given as an object or a name, as its current definition."""
     if isinstance(layer, Layer):
-        return registry.find(layer.name) or layer
+        return DEFINITIONS.find(layer.name) or layer
     if isinstance(layer, str):
-        return registry.lookup(layer)
+        return DEFINITIONS.lookup(layer)
     raise TypeError(f"expected a Layer or a layer name, got {layer!r}")

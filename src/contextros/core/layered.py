@@ -2,321 +2,18 @@
 
 from __future__ import annotations
 
-import inspect
-from collections.abc import Callable, Mapping
-from types import FunctionType, MappingProxyType
+from collections.abc import Callable
+from types import FunctionType
 from typing import Any, TypeVar, overload
 
-from contextros.core.configuration import Configuration
-from contextros.core.layer import Layer, resolve
-from contextros.core.linking import (
-    ProceedUse,
-    analyse,
-    can_take_code_of,
-    copy_function,
-    fresh_key,
-    link,
-    mark_base,
-    passing_through,
-    proceed,
-    same_parameters,
-    trampoline_code,
-)
-from contextros.errors import LayerDefinitionError, NoImplementationError, ProceedError
+from contextros.core.composition import LayeredFunction, layered_function_of
+from contextros.core.layer import Layer
+from contextros.core.runtime import RUNTIME
+from contextros.errors import LayerDefinitionError
+
+__all__ = ["LayeredFunction", "LayeredProperty", "layered", "layered_function_of"]
 
 F = TypeVar("F", bound=Callable[..., Any])
-
-
-class _Partials:
-    """One published set of partials: each function with its `proceed` analysis, and the
-    chains composed from exactly these (by the ordered names of the layers that refine).
-
-    Never changed once published (only `chains`, a cache of this set's own chains, grows):
-    adding, replacing or removing a partial publishes a new one, so a call composing its
-    chain without the runtime's lock reads one consistent set, and a chain composed from
-    a replaced partial can only be cached in the set it was composed from."""
-
-    __slots__ = ("chains", "functions", "uses")
-
-    def __init__(self, functions: dict[str, FunctionType], uses: dict[str, ProceedUse]) -> None:
-        self.functions = functions
-        self.uses = uses
-        self.chains: dict[tuple[str, ...], Callable[..., Any]] = {}
-
-
-class LayeredFunction:
-    """The composition state behind one layered function or method.
-
-    Users never hold this object: they hold `stable`, a plain function that stays the
-    same object for the program's life (so bound methods captured by timers and
-    callbacks follow every switch) while its behaviour is recomposed per configuration.
-
-    Chains are composed once per configuration and cached by the ordered tuple of the
-    active layers that refine this function; layers without a partial here are
-    transparent and share a chain.
-    """
-
-    def __init__(self, stub: FunctionType, base: FunctionType | None) -> None:
-        self.qualname = stub.__qualname__
-        self.base = base
-        if base is not None:
-            mark_base(base)
-        self._published = _Partials({}, {})
-        self.stable = copy_function(stub)
-        self._freevars = stub.__code__.co_freevars
-        self._head_key = fresh_key("head")
-        self._scope_key = fresh_key("scope")
-        self._runtime_key = fresh_key("runtime")
-        self._self_key = fresh_key("layered")
-        call_head = f"return {self._head_key}(*args, **kwargs)"
-        self._direct_code = trampoline_code([call_head], self._freevars, self.qualname)
-        self._signature = stub.__code__
-        parameters, arguments = passing_through(stub.__code__)
-        self._exact_code = trampoline_code(
-            [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
-        )
-        self._scoped_code = trampoline_code(
-            [
-                f"__contextros_scope = {self._scope_key}.get()",
-                "if __contextros_scope is None:",
-                f"    if not {self._runtime_key}._live_scopes:",
-                f"        {self._runtime_key}.back_to_direct({self._self_key})",
-                f"    {call_head}",
-                f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
-                "if __contextros_head is None:",
-                f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                "return __contextros_head(*args, **kwargs)",
-            ],
-            self._freevars,
-            self.qualname,
-        )
-        self._objects_key = fresh_key("objects")
-        self._classes_key = fresh_key("classes")
-        # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
-        self.receiver_kind = ""
-        self._receiver_code = {
-            kind: trampoline_code(
-                [
-                    "if args:",
-                    f"    __contextros_r = {self._objects_key}.get(id(args[0]))",
-                    "    if __contextros_r is None:",
-                    f"        __contextros_r = {self._classes_key}[{receiver}]",
-                    "else:",
-                    "    __contextros_r = None",
-                    f"__contextros_scope = {self._scope_key}.get()",
-                    "if __contextros_r is not None:",
-                    f"    return __contextros_r.head({self._self_key}, __contextros_scope)"
-                    "(*args, **kwargs)",
-                    "if __contextros_scope is None:",
-                    f"    {call_head}",
-                    f"__contextros_head = __contextros_scope.heads.get({self._self_key})",
-                    "if __contextros_head is None:",
-                    f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                    "return __contextros_head(*args, **kwargs)",
-                ],
-                self._freevars,
-                self.qualname,
-            )
-            for kind, receiver in (("object", "type(args[0])"), ("class", "args[0]"))
-        }
-        self.stable.__wrapped__ = stub  # type: ignore[attr-defined]
-        self.stable.partial = self.partial  # type: ignore[attr-defined]
-        self.stable.before = self.before  # type: ignore[attr-defined]
-        self.stable.after = self.after  # type: ignore[attr-defined]
-        self.stable.around = self.around  # type: ignore[attr-defined]
-        self.stable.remove_partial = self.remove_partial  # type: ignore[attr-defined]
-        self.stable.__contextros__ = self  # type: ignore[attr-defined]
-        # A classmethod or staticmethod wrapping `stable`, when it was layered as one.
-        self.descriptor: classmethod[Any, Any, Any] | staticmethod[Any, Any] | None = None
-        self.global_head: Callable[..., Any] = self._missing()
-
-    def __repr__(self) -> str:
-        return f"<layered {self.qualname} partials={sorted(self.partials)}>"
-
-    @property
-    def partials(self) -> Mapping[str, FunctionType]:
-        """The partials by layer name (a read-only view of the published set)."""
-        return MappingProxyType(self._published.functions)
-
-    # -- definition ----------------------------------------------------------------------
-
-    def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
-        """Decorator registering the partial implementation of this function for `layer`.
-
-        Returns the layered function itself (for a layered classmethod or staticmethod,
-        that descriptor), so the name stays bound to it in a class body or module. The
-        partial may itself be decorated with @classmethod / @staticmethod, to match.
-        """
-        target = resolve(layer)
-
-        def register(function: F) -> F:
-            plain: object = function
-            if isinstance(plain, (classmethod, staticmethod)):
-                plain = plain.__func__
-            if isinstance(plain, property):
-                plain = plain.fget
-            if not isinstance(plain, FunctionType):
-                raise LayerDefinitionError(
-                    f"partial of {self.qualname} for layer {target.name} must be a plain "
-                    f"function, got {function!r}"
-                )
-            if target.name in self.partials and not replace:
-                raise LayerDefinitionError(
-                    f"{self.qualname} already has a partial for layer {target.name} "
-                    "(pass replace=True to redefine it)"
-                )
-            self._set_partial(target.name, plain)
-            return self.public  # type: ignore[return-value]
-
-        return register
-
-    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
-        """The same as `partial`: the partial runs around the rest of the chain and calls
-        `proceed(...)` where the rest should run (ContextPy3's name for it)."""
-        return self.partial(layer, replace=replace)
-
-    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
-        """A partial that runs before the rest of the chain, with the same arguments; the
-        rest then runs with those arguments and its result is the call's result."""
-        register = self.partial(layer, replace=replace)
-
-        def decorate(function: F) -> F:
-            partial: Any = _before(_unwrapped(function), self.is_async)
-            return register(partial)  # type: ignore[no-any-return]
-
-        return decorate
-
-    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[F], F]:
-        """A partial that runs after the rest of the chain: it is called as
-        ``function(result, *args, **kwargs)`` with that result and the call's arguments,
-        and what it returns is the call's result (return `result` to keep it)."""
-        register = self.partial(layer, replace=replace)
-
-        def decorate(function: F) -> F:
-            partial: Any = _after(_unwrapped(function), self.is_async)
-            return register(partial)  # type: ignore[no-any-return]
-
-        return decorate
-
-    def remove_partial(self, layer: Layer | str) -> None:
-        """Remove this function's partial for `layer` at run time; calls are rewired at
-        once (in every thread, scopes included). KeyError-free: LayerDefinitionError
-        when there is none."""
-        name = layer.name if isinstance(layer, Layer) else layer
-        if name not in self.partials:
-            raise LayerDefinitionError(f"{self.qualname} has no partial for layer {name}")
-        self._set_partial(name, None)
-
-    def _set_partial(self, name: str, function: FunctionType | None) -> None:
-        from contextros.core.runtime import RUNTIME
-
-        use = analyse(function) if function is not None else None  # before publishing
-        with RUNTIME.lock:
-            current = self._published
-            functions, uses = dict(current.functions), dict(current.uses)
-            if function is None or use is None:
-                del functions[name]
-                del uses[name]
-            else:
-                functions[name] = function
-                uses[name] = use
-            self._published = _Partials(functions, uses)  # one assignment: all or nothing
-            RUNTIME.rewire(self)
-
-    @property
-    def is_async(self) -> bool:
-        return inspect.iscoroutinefunction(self.stable.__wrapped__)  # type: ignore[attr-defined]
-
-    @property
-    def public(self) -> object:
-        """What user code holds: the stable function, or the descriptor wrapping it."""
-        return self.descriptor if self.descriptor is not None else self.stable
-
-    # -- composition ---------------------------------------------------------------------
-
-    def head_for(self, configuration: Configuration) -> Callable[..., Any]:
-        """The first implementation to run under `configuration` (composed once, cached).
-
-        Safe without the runtime's lock: it reads one published set of partials."""
-        published = self._published
-        functions = published.functions
-        relevant = tuple(layer.name for layer in reversed(configuration) if layer.name in functions)
-        head = published.chains.get(relevant)
-        if head is None:
-            head = published.chains[relevant] = self._compose(published, relevant)
-        return head
-
-    def _compose(self, published: _Partials, relevant: tuple[str, ...]) -> Callable[..., Any]:
-        if not relevant:
-            return self.base if self.base is not None else self._missing()
-        following: Callable[..., Any] = (
-            self.base if self.base is not None else self._exhausted(relevant[-1])
-        )
-        for name in reversed(relevant):
-            following = link(published.functions[name], published.uses[name], following)
-        return following
-
-    def install(self, head: Callable[..., Any]) -> None:
-        """Make calls of `stable` run `head`: by taking its code, else via a trampoline
-        (one that passes the parameters straight on when `head` takes the same ones)."""
-        if can_take_code_of(self.stable, head):
-            self.stable.__code__ = head.__code__  # type: ignore[attr-defined]
-            return
-        self.stable.__globals__[self._head_key] = head
-        if same_parameters(self.stable, self._signature, head):
-            self.stable.__code__ = self._exact_code
-        else:
-            self.stable.__code__ = self._direct_code
-
-    def install_scoped(self, runtime: Any) -> None:
-        """Make calls of `stable` read the caller's scope first (while scopes are alive);
-        a call that finds no scope alive at all puts the direct path back."""
-        namespace = self.stable.__globals__
-        namespace[self._head_key] = self.global_head
-        namespace[self._scope_key] = runtime.scope
-        namespace[self._runtime_key] = runtime
-        namespace[self._self_key] = self
-        self.stable.__code__ = self._scoped_code
-
-    def install_receiver(self, runtime: Any) -> None:
-        """Make calls of `stable` look up their receiver's own layers first (per-object
-        and class-wide activation), then the caller's scope."""
-        namespace = self.stable.__globals__
-        namespace[self._head_key] = self.global_head
-        namespace[self._scope_key] = runtime.scope
-        namespace[self._objects_key] = runtime.receivers.objects
-        namespace[self._classes_key] = runtime.receivers.classes
-        namespace[self._self_key] = self
-        self.stable.__code__ = self._receiver_code[self.receiver_kind]
-
-    def _missing(self) -> Callable[..., Any]:
-        qualname = self.qualname
-        owner = self
-
-        def no_implementation(*args: Any, **kwargs: Any) -> Any:
-            from contextros.core.runtime import RUNTIME
-
-            # On the per-receiver path the call saw its receiver's layers: name those.
-            receiver = args[0] if owner.receiver_kind and args else None
-            layers = RUNTIME.effective(receiver)
-            active = ", ".join(layer.name for layer in layers) or "none"
-            raise NoImplementationError(
-                f"{qualname}() has no base implementation and no active layer provides it "
-                f"(active layers: {active})"
-            )
-
-        return no_implementation
-
-    def _exhausted(self, innermost: str) -> Callable[..., Any]:
-        qualname = self.qualname
-
-        def nothing_below(*args: Any, **kwargs: Any) -> Any:
-            raise ProceedError(
-                f"proceed() in layer {innermost}'s partial of {qualname}: there is no further "
-                "implementation (no base, and no older active layer provides one)"
-            )
-
-        return nothing_below
 
 
 @overload
@@ -358,9 +55,7 @@ def layered(function: F | None = None, /, *, base: bool = True) -> F | Callable[
             raise LayerDefinitionError(
                 f"@layered applies to plain functions and methods, not {target!r}"
             )
-        from contextros.core.runtime import RUNTIME
-
-        owner = LayeredFunction(target, target if base else None)
+        owner = LayeredFunction(target, target if base else None, RUNTIME)
         RUNTIME.adopt(owner)
         return owner.stable
 
@@ -368,15 +63,6 @@ def layered(function: F | None = None, /, *, base: bool = True) -> F | Callable[
         made: F = make(function)
         return made
     return make
-
-
-def layered_function_of(function: object) -> LayeredFunction | None:
-    """The composition state behind a layered function, or None if it is not layered.
-
-    Accepts the function, a layered classmethod/staticmethod, or a layered property
-    (its getter's state)."""
-    owner = getattr(function, "__contextros__", None)
-    return owner if isinstance(owner, LayeredFunction) else None
 
 
 class LayeredProperty(property):
@@ -392,8 +78,10 @@ class LayeredProperty(property):
         assert owner is not None
         return owner
 
-    def _refine(self, kind: str, layer: Layer | str, replace: bool) -> Callable[[Any], Any]:
-        register = getattr(self.__contextros__, kind)(layer, replace=replace)
+    def _refine(
+        self, kind: str, layer: Layer | str, replace: bool, when: Callable[..., object] | None
+    ) -> Callable[[Any], Any]:
+        register = getattr(self.__contextros__, kind)(layer, replace=replace, when=when)
 
         def add(function: Any) -> LayeredProperty:
             register(function.fget if isinstance(function, property) else function)
@@ -401,75 +89,41 @@ class LayeredProperty(property):
 
         return add
 
-    def partial(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("partial", layer, replace)
+    def partial(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("partial", layer, replace, when)
 
-    def around(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("around", layer, replace)
+    def around(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("around", layer, replace, when)
 
-    def before(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("before", layer, replace)
+    def before(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("before", layer, replace, when)
 
-    def after(self, layer: Layer | str, *, replace: bool = False) -> Callable[[Any], Any]:
-        return self._refine("after", layer, replace)
+    def after(
+        self,
+        layer: Layer | str,
+        *,
+        replace: bool = False,
+        when: Callable[..., object] | None = None,
+    ) -> Callable[[Any], Any]:
+        return self._refine("after", layer, replace, when)
 
     def remove_partial(self, layer: Layer | str) -> None:
         self.__contextros__.remove_partial(layer)
-
-
-def _unwrapped(function: object) -> FunctionType:
-    if isinstance(function, (classmethod, staticmethod)):
-        function = function.__func__
-    if isinstance(function, property):
-        function = function.fget
-    if not isinstance(function, FunctionType):
-        raise LayerDefinitionError(f"before/after take a plain function, got {function!r}")
-    return function
-
-
-# before/after are partials that call `proceed` by name (relinked like any other).
-
-
-def _before(function: FunctionType, is_async: bool) -> FunctionType:
-    if is_async:
-
-        async def before_async(*args: Any, **kwargs: Any) -> Any:
-            result = function(*args, **kwargs)
-            if inspect.isawaitable(result):
-                await result
-            return await proceed(*args, **kwargs)
-
-        chosen: FunctionType = before_async  # type: ignore[assignment]
-    else:
-
-        def before(*args: Any, **kwargs: Any) -> Any:
-            function(*args, **kwargs)
-            return proceed(*args, **kwargs)
-
-        chosen = before  # type: ignore[assignment]
-    return _named_like(chosen, function)
-
-
-def _after(function: FunctionType, is_async: bool) -> FunctionType:
-    if is_async:
-
-        async def after_async(*args: Any, **kwargs: Any) -> Any:
-            result = function(await proceed(*args, **kwargs), *args, **kwargs)
-            return (await result) if inspect.isawaitable(result) else result
-
-        chosen: FunctionType = after_async  # type: ignore[assignment]
-    else:
-
-        def after(*args: Any, **kwargs: Any) -> Any:
-            return function(proceed(*args, **kwargs), *args, **kwargs)
-
-        chosen = after  # type: ignore[assignment]
-    return _named_like(chosen, function)
-
-
-def _named_like(wrapper: FunctionType, function: FunctionType) -> FunctionType:
-    wrapper.__name__ = function.__name__
-    wrapper.__qualname__ = function.__qualname__
-    wrapper.__doc__ = function.__doc__
-    wrapper.__wrapped__ = function  # type: ignore[attr-defined]
-    return wrapper

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from contextros.core import configuration as rules
+from contextros.core.composition import LayeredFunction, layered_function_of
 from contextros.core.configuration import Configuration
-from contextros.core.layer import Layer
-from contextros.core.layered import LayeredFunction
+from contextros.core.layer import DEFINITIONS, Layer
 from contextros.errors import HookError, LayerDefinitionError, LayerError, RelationError
 
 log = logging.getLogger("contextros")
@@ -78,19 +78,18 @@ class SwitchResult:
 Plan = Callable[[Configuration], Configuration]
 
 
-class _Heads(dict):  # type: ignore[type-arg]
-    """The heads composed for one configuration, by layered function.
+# The heads composed for one configuration, by layered function, with that configuration
+# under the key _CONFIGURATION. A plain dict (a subclass would slow every call's subscript).
+#
+# Replaced as a whole on every decisive switch, never cleared: a head computed for an older
+# configuration can only be stored in that configuration's table, so a thread racing a
+# switch never leaves a stale head where the next call would find it.
+_CONFIGURATION = object()
+Heads = dict[object, Any]
 
-    Replaced as a whole on every decisive switch, never cleared: a head computed for an
-    older configuration can only be stored in that configuration's table, so a thread
-    racing a switch never leaves a stale head where the next call would find it.
-    """
 
-    __slots__ = ("configuration",)
-
-    def __init__(self, configuration: Configuration) -> None:
-        super().__init__()
-        self.configuration = configuration
+def _heads(configuration: Configuration) -> Heads:
+    return {_CONFIGURATION: configuration}
 
 
 class _Scope:
@@ -107,19 +106,20 @@ class _Scope:
     def __init__(self, runtime: Runtime, steps: tuple[tuple[bool, Layer], ...]) -> None:
         self._runtime = runtime
         self.steps = steps
-        self.heads = _Heads(rules.replay(runtime.active, steps))
+        self.heads = _heads(rules.replay(runtime.active, steps))
 
     def refresh(self, active: Configuration) -> None:
-        self.heads = _Heads(rules.replay(active, self.steps))
+        self.heads = _heads(rules.replay(active, self.steps))
 
     def configuration(self) -> Configuration:
-        return self.heads.configuration
+        configuration: Configuration = self.heads[_CONFIGURATION]
+        return configuration
 
     def head(self, function: LayeredFunction) -> Callable[..., Any]:
         heads = self.heads  # one snapshot: configuration and table belong together
         head = heads.get(function)
         if head is None:
-            head = heads[function] = function.head_for(heads.configuration)
+            head = heads[function] = function.head_for(heads[_CONFIGURATION])
         return head
 
     def __del__(self) -> None:
@@ -158,14 +158,14 @@ class _Receiver:
     __slots__ = ("heads",)
 
     def __init__(self, configuration: Configuration) -> None:
-        self.heads = _Heads(configuration)
+        self.heads = _heads(configuration)
 
     def head(self, function: LayeredFunction, scope: _Scope | None) -> Callable[..., Any]:
         heads = self.heads  # one snapshot, as in _Scope.head
         key: object = function if scope is None else (function, scope.steps)
         head = heads.get(key)
         if head is None:
-            configuration = heads.configuration
+            configuration = heads[_CONFIGURATION]
             if scope is not None:
                 configuration = rules.replay(configuration, scope.steps)
             head = heads[key] = function.head_for(configuration)
@@ -371,7 +371,7 @@ class Receivers:
 
     def _rebuild(self) -> None:
         """New tables, never cleared ones: a call racing this change can only store what
-        it computed into the old tables (as with `_Heads`); the functions are reinstalled
+        it computed into the old tables (as with the heads tables); the functions are reinstalled
         with the new ones right after (by the switch, `_mark` or `_reinstall`), so the
         tables the functions read are always `objects` and `classes`."""
         active = self.runtime.active
@@ -433,8 +433,6 @@ class Receivers:
         self._rebuild()
 
     def _mark(self, classes: list[type]) -> None:
-        from contextros.core.layered import layered_function_of
-
         seen: set[type] = set()
         for cls in classes:
             for klass in getattr(cls, "__mro__", (cls,)):
@@ -545,8 +543,6 @@ class Runtime:
         """Deactivate `layer` (if decisively active), drop its partials from every layered
         function and forget its definition. Returns the qualnames of the functions it
         refined. A RelationError from the deactivation leaves everything as it was."""
-        from contextros.core import registry
-
         with self.lock:
             if layer in self.active:
                 if self._critical_depth:
@@ -562,7 +558,7 @@ class Runtime:
                 if layer.name in function.partials:
                     function.remove_partial(layer.name)
                     refined.append(function.qualname)
-            registry.unregister(layer.name)
+            DEFINITIONS.unregister(layer.name)
             return tuple(sorted(refined))
 
     def _reinstall_all(self) -> None:
@@ -724,15 +720,13 @@ class Runtime:
         if receiver is not None:
             found = self.receivers.of(receiver)
             if found is not None:
-                base = found.heads.configuration
+                base = found.heads[_CONFIGURATION]
                 return base if scope is None else rules.replay(base, scope.steps)
         return self.active if scope is None else scope.configuration()
 
 
 def _run_hook(layer: Layer, kind: str) -> None:
-    from contextros.core import registry
-
-    definition = registry.find(layer.name) or layer
+    definition = DEFINITIONS.find(layer.name) or layer
     hook = getattr(definition, kind)
     if hook is None:
         return

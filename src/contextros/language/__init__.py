@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-from contextros import _lazy_exports
+from contextros._exports import lazy_exports
 
 if TYPE_CHECKING:
     from contextros.language.checker import check, check_file, check_source
@@ -54,7 +54,7 @@ _LAZY = {
 }
 
 
-__getattr__, __dir__ = _lazy_exports(__name__, _LAZY, globals())
+__getattr__, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 
 __all__ = [

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 from contextros.language.diagnostics import DiagnosticSink
 from contextros.language.literals import string_literal
-from contextros.language.syntax import Position, Ref
+from contextros.language.positions import Position, Ref
 
 LIFECYCLE_STATES = ("active", "inactive")
 _NODE = r"(?:~/|/)?[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*"

@@ -22,6 +22,7 @@ from contextros.language.diagnostics import (
     sorted_diagnostics,
 )
 from contextros.language.flavours import parse_with_diagnostics, read_source, unreadable
+from contextros.language.python_syntax import guard_name
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Position, Ref
 
 # Names the compiled module defines besides the generated functions and the layers
@@ -475,6 +476,21 @@ class _Checker:
                         f"{key} in layer {function.layer}",
                         "the compiled name",
                     )
+                )
+                if function.guard is not None and self.file.language == "python":
+                    claims.append(
+                        (
+                            guard_name(function),
+                            f"the guard of {key} in layer {function.layer}",
+                            "the compiled name of the guard",
+                        )
+                    )
+            elif function.guard is not None:
+                self.sink.error(
+                    f"a guard ('when ...') belongs to a layer's partial; the base "
+                    f"implementation of {key} always applies: move the condition to a layer",
+                    function.guard.at.line,
+                    function.guard.at.col,
                 )
             for name, claimant, what in claims:
                 owner = taken.setdefault(name, claimant)

@@ -23,7 +23,7 @@ from types import CodeType
 from contextros.language.checker import checked
 from contextros.language.diagnostics import Diagnostic, source_lines
 from contextros.language.flavours import read_source
-from contextros.language.python_syntax import PythonFunction
+from contextros.language.python_syntax import PythonFunction, guard_function_lines, guard_name
 from contextros.language.syntax import Function, Hook, LayerDecl, LayerFile, Ref, SourceLine
 
 # Bumped whenever the generated code changes shape: it invalidates the loader's cache.
@@ -245,6 +245,8 @@ class _Emitter:
         for partial in partials:
             self.blank(partial.at.line)
             self.source(partial.lines, f"layer {partial.layer}")
+            if partial.guard is not None:
+                self.guard(partial)
         self.blank(line)
         dispatch = key if first.owner is None else f"{first.owner}_{first.name}"
         if first.owner is not None:
@@ -256,9 +258,25 @@ class _Emitter:
                 line,
             )
         for partial in partials:
+            when = f", when={guard_name(partial)}" if partial.guard is not None else ""
             self.glue(
-                f"{dispatch}.partial({partial.layer})({partial.generated_name})", partial.at.line
+                f"{dispatch}.partial({partial.layer}{when})({partial.generated_name})",
+                partial.at.line,
             )
+
+    def guard(self, partial: PythonFunction) -> None:
+        """`when CONDITION` as a function of the partial's parameters, run on each call."""
+        assert partial.node is not None and partial.guard is not None
+        self.blank(partial.guard.at.line)
+        self.glue(
+            f"# {self.name}:{partial.guard.at.line} (layer {partial.layer}, guard)",
+            partial.guard.at.line,
+        )
+        for line in guard_function_lines(partial.guard_lines, partial.node, guard_name(partial)):
+            if isinstance(line, SourceLine):
+                self.out.append(line)
+            else:
+                self.glue(line, partial.guard.at.line)
 
     def stub(self, first: PythonFunction) -> None:
         """The dispatch function of a method without base: a signature and a docstring."""

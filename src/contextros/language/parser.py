@@ -16,7 +16,7 @@ import tokenize
 import unicodedata
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from contextros.language.diagnostics import (
     Diagnostic,
@@ -25,10 +25,16 @@ from contextros.language.diagnostics import (
     source_lines,
 )
 from contextros.language.lines import is_line_declaration, parse_line_declaration
-from contextros.language.python_syntax import PythonFunction, header_names, python_function
+from contextros.language.python_syntax import (
+    PythonFunction,
+    guard_function_lines,
+    header_names,
+    python_function,
+)
 from contextros.language.syntax import (
     BaseBlock,
     GroupDecl,
+    Guard,
     Hook,
     LayerDecl,
     LayerFile,
@@ -553,6 +559,11 @@ class _Parser:
             lines[def_index] = self._rename(
                 lines[def_index], match.start("target"), match.end("target"), generated
             )
+        guard: _CutGuard | None = None
+        if match is not None:
+            guard = self._cut_guard(lines, def_index)
+            if guard is not None and guard.problem:
+                return None
         node = self._python_lines(lines)
         if node is None or match is None or name is None:
             if node is not None:  # Python accepted it, yet it is not `def name(...)`
@@ -568,15 +579,127 @@ class _Parser:
         ):
             self.sink.error("expected a single method definition", at.line, at.col)
             return None
+        function_node = node.body[0]
+        if guard is not None and not self._guard_compiles(guard, function_node):
+            return None
         return python_function(
             name=name,
             owner=owner,
             layer=layer.name if layer is not None else None,
             at=at,
-            node=node.body[0],
+            node=function_node,
             lines=lines,
             generated_name=generated,
+            guard=guard.guard if guard is not None else None,
+            guard_lines=guard.lines if guard is not None else (),
         )
+
+    def _cut_guard(self, lines: list[SourceLine], def_index: int) -> _CutGuard | None:
+        """Find `when CONDITION` between a def's parameter list and its header's `:`, and
+        blank it out of `lines` (column for column), for Python to parse the rest.
+
+        The condition is kept as its own pieces of lines, each with its file position."""
+        rows = lines[def_index:]
+        text = "\n".join(line.text for line in rows) + "\n"
+        depth, after_parameters, previous = 0, False, ""
+        start: tuple[int, int] | None = None
+        end: tuple[int, int] | None = None
+        bare_lambda: tuple[int, int] | None = None
+        try:
+            for token in tokenize.generate_tokens(io.StringIO(text).readline):
+                if token.type == tokenize.OP:
+                    if token.string in "([{":
+                        depth += 1
+                    elif token.string in ")]}":
+                        depth -= 1
+                        after_parameters = after_parameters or depth == 0
+                    elif token.string == ":" and depth == 0 and after_parameters:
+                        end = token.start
+                        break
+                elif (
+                    token.type == tokenize.NAME
+                    and token.string == "when"
+                    and depth == 0
+                    and after_parameters
+                    and start is None
+                    and previous != "->"
+                ):
+                    start = token.start
+                elif token.type == tokenize.NAME and token.string == "lambda" and depth == 0:
+                    bare_lambda = bare_lambda or token.start
+                elif token.type in (tokenize.NEWLINE, tokenize.ENDMARKER):
+                    break
+                previous = token.string
+        except (tokenize.TokenError, SyntaxError):
+            return None  # Python's parser reports the header's own problem
+        if start is None:
+            return None
+        first = rows[start[0] - 1]
+        when_at = Position(first.line, first.char_column(start[1]) + 1)
+        if bare_lambda is not None and bare_lambda > start:
+            line = rows[bare_lambda[0] - 1]
+            self.sink.error(
+                "a lambda in a guard needs parentheses: its ':' would end the 'def' line",
+                line.line,
+                line.char_column(bare_lambda[1]) + 1,
+            )
+            return _CutGuard(None, (), problem=True)
+        if end is None:
+            self.sink.error(
+                "expected ':' after the guard ('when CONDITION:')", when_at.line, when_at.col
+            )
+            return _CutGuard(None, (), problem=True)
+        pieces: list[SourceLine] = []
+        condition_start: Position | None = None
+        for row in range(start[0], end[0] + 1):
+            line = rows[row - 1]
+            begin = start[1] + len("when") if row == start[0] else 0
+            stop = end[1] if row == end[0] else len(line.text)
+            piece = line.text[begin:stop]
+            if piece.strip() and condition_start is None:
+                column = begin + len(piece) - len(piece.lstrip())
+                condition_start = Position(line.line, line.char_column(column) + 1)
+            byte_begin = len(line.text[:begin].encode())
+            pieces.append(SourceLine(piece, line.line, line.column(byte_begin)))
+            cut_from = start[1] if row == start[0] else 0
+            blank = " " * (stop - cut_from)
+            if row != end[0]:  # the header goes on below: keep the lines joined
+                blank = blank[:-1] + "\\" if blank else "\\"
+            rows[row - 1] = replace(line, text=line.text[:cut_from] + blank + line.text[stop:])
+        rest = rows[end[0] - 1].text[end[1] + 1 :]
+        if not rest.strip() or rest.lstrip().startswith("#"):
+            # Nothing but the header's `:` after the guard (the usual case): the header
+            # ends where the guard started, the guard's other lines stay as empty lines.
+            for row in range(start[0], end[0] + 1):
+                line = rows[row - 1]
+                kept = line.text[: start[1]].rstrip() + ":" if row == start[0] else ""
+                rows[row - 1] = replace(line, text=kept + (rest if row == end[0] else ""))
+        lines[def_index:] = rows
+        condition = "\n".join(p.text for p in pieces).strip()
+        if not condition or condition_start is None:
+            self.sink.error("expected a condition after 'when'", when_at.line, when_at.col)
+            return _CutGuard(None, (), problem=True)
+        return _CutGuard(Guard(condition, condition_start), tuple(pieces))
+
+    def _guard_compiles(
+        self, guard: _CutGuard, function: ast.FunctionDef | ast.AsyncFunctionDef
+    ) -> bool:
+        """Python's parser and compiler on the guard, as the back end will emit it: a plain
+        function of the implementation's parameters returning the condition."""
+        assert guard.guard is not None
+        at = guard.guard.at
+        lines = guard_function_lines(guard.lines, function, "guard")
+
+        def where(row: int, col: int) -> tuple[int, int]:
+            line = lines[min(max(row, 1), len(lines)) - 1]
+            if isinstance(line, SourceLine):
+                return line.line, line.char_column(col)
+            return at.line, at.col - 1  # the generated `def` line: the condition
+
+        text = "\n".join(ln.text if isinstance(ln, SourceLine) else ln for ln in lines) + "\n"
+        before = len(self.sink.items)
+        self._python(text, where, at.line)
+        return not any(d.is_error for d in self.sink.items[before:])
 
     def _hook(self, first: int, end: int, layer: LayerDecl) -> Hook | None:
         lines = self._dedent(first, end)
@@ -664,6 +787,13 @@ class _Parser:
                 row, col = where(warning.lineno or fallback_line, 0)
                 self.sink.warning(f"Python: {warning.message}", row, col + 1)
         return node
+
+
+@dataclass(frozen=True)
+class _CutGuard:
+    guard: Guard | None
+    lines: tuple[SourceLine, ...]
+    problem: bool = False
 
 
 def _error_column(error: SyntaxError, text: str) -> int:

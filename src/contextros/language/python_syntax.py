@@ -8,11 +8,13 @@ looks at `ast` nodes.
 from __future__ import annotations
 
 import ast
+import copy
 from dataclasses import dataclass
 
 from contextros.language.syntax import (
     Decorator,
     Function,
+    Guard,
     Position,
     ProceedCall,
     Signature,
@@ -26,6 +28,8 @@ class PythonFunction(Function):
 
     node: ast.FunctionDef | ast.AsyncFunctionDef | None = None
     lines: tuple[SourceLine, ...] = ()
+    # The guard's condition, piece by piece (one per line it spans), with file positions.
+    guard_lines: tuple[SourceLine, ...] = ()
 
 
 def python_function(
@@ -37,6 +41,8 @@ def python_function(
     node: ast.FunctionDef | ast.AsyncFunctionDef,
     lines: list[SourceLine],
     generated_name: str,
+    guard: Guard | None = None,
+    guard_lines: tuple[SourceLine, ...] = (),
 ) -> PythonFunction:
     args = node.args
     first = [*args.posonlyargs, *args.args][:1]
@@ -59,7 +65,39 @@ def python_function(
         instance_name=first[0].arg if first else "self",
         node=node,
         lines=tuple(lines),
+        guard=guard,
+        guard_lines=guard_lines,
     )
+
+
+def guard_name(function: Function) -> str:
+    """The compiled name of an implementation's guard."""
+    return f"{function.generated_name}__when"
+
+
+def guard_function_lines(
+    pieces: tuple[SourceLine, ...] | list[SourceLine],
+    function: ast.FunctionDef | ast.AsyncFunctionDef,
+    name: str,
+) -> list[SourceLine | str]:
+    """The guard as a function of the implementation's parameters (annotations dropped:
+    they are evaluated once, for the implementation): the `def` line as generated text,
+    the condition's lines keeping their positions in the layer file."""
+    arguments = copy.deepcopy(function.args)
+    for argument in [*arguments.posonlyargs, *arguments.args, *arguments.kwonlyargs]:
+        argument.annotation = None
+    for extra in (arguments.vararg, arguments.kwarg):
+        if extra is not None:
+            extra.annotation = None
+    out: list[SourceLine | str] = [f"def {name}({ast.unparse(arguments)}):"]
+    for index, piece in enumerate(pieces):
+        if index == 0:  # the condition starts after the blank(s) that follow `when`
+            text = piece.text.lstrip()
+            piece = SourceLine(text, piece.line, piece.delta + len(piece.text) - len(text))
+        prefix = "    return (" if index == 0 else "        "
+        suffix = ")" if index == len(pieces) - 1 else ""
+        out.append(SourceLine(prefix + piece.text + suffix, piece.line, piece.delta - len(prefix)))
+    return out
 
 
 def signature_shape(node: ast.FunctionDef | ast.AsyncFunctionDef) -> tuple[object, ...]:

@@ -34,7 +34,7 @@ from dataclasses import dataclass, field
 
 from contextros.language.diagnostics import DiagnosticSink
 from contextros.language.literals import string_literal
-from contextros.language.syntax import Position, Ref
+from contextros.language.positions import Position, Ref
 
 COMPARISONS = ("<=", ">=", "==", "!=", "<", ">")
 # How deep `not` and parentheses may nest in a condition (the parser recurses per level).

@@ -12,25 +12,27 @@ what its back end needs (Python's `ast` nodes, the C++ text spans).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from contextros.language.bindings import LifecycleBinding, ParameterBinding
-    from contextros.language.rules import RuleDecl
+from contextros.language.bindings import LifecycleBinding, ParameterBinding
+from contextros.language.positions import Position, Ref
+from contextros.language.rules import RuleDecl
 
-
-@dataclass(frozen=True)
-class Position:
-    line: int
-    col: int
-
-
-@dataclass(frozen=True)
-class Ref:
-    """A layer named in a relation or a group, where it was named."""
-
-    name: str
-    at: Position
+__all__ = [
+    "BaseBlock",
+    "Decorator",
+    "Function",
+    "GroupDecl",
+    "Guard",
+    "Hook",
+    "LayerDecl",
+    "LayerFile",
+    "Position",
+    "ProceedCall",
+    "Ref",
+    "Signature",
+    "SourceLine",
+    "char_of_byte",
+]
 
 
 @dataclass(frozen=True)
@@ -110,6 +112,20 @@ class Decorator:
     at: Position
 
 
+@dataclass(frozen=True)
+class Guard:
+    """`when CONDITION` on a partial: the partial applies to a call only while CONDITION,
+    evaluated on that call's arguments, holds; otherwise the call goes on to the next
+    implementation of the chain (as if this layer had no partial there).
+
+    `text` is the condition as written, in the flavour's expression language (a Python
+    expression, a C++ expression); `at` is where it starts in the layer file.
+    """
+
+    text: str
+    at: Position
+
+
 @dataclass
 class Function:
     """A method implementation: in a layer (a partial) or in the base block.
@@ -129,6 +145,8 @@ class Function:
     decorators: tuple[Decorator, ...] = ()
     takes_instance: bool = True
     instance_name: str = "self"
+    # `when CONDITION` on a layer's partial; None for an unguarded one (and the base's).
+    guard: Guard | None = None
 
     @property
     def key(self) -> str:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-from contextros import _lazy_exports
+from contextros._exports import lazy_exports
 from contextros.installation import RosUnavailableError, ros_problem
 
 if TYPE_CHECKING:
@@ -48,7 +48,7 @@ _LAZY = {
 }
 
 
-_lazy_getattr, __dir__ = _lazy_exports(__name__, _LAZY, globals())
+_lazy_getattr, __dir__ = lazy_exports(__name__, _LAZY, globals())
 
 
 def __getattr__(name: str) -> Any:

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
 from contextros.language.flavours import parse_files
+from contextros.language.positions import Position, Ref
 from contextros.language.rules import (
     BoolOp,
     Comparison,
@@ -19,7 +20,6 @@ from contextros.language.rules import (
     RuleDecl,
     parse_rule,
 )
-from contextros.language.syntax import Position, Ref
 
 # What a message field is, as far as a condition cares: "number", "string", "bool",
 # "message" (has fields of its own), "array" (not comparable), or None (no such field).

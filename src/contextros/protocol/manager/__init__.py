@@ -27,12 +27,12 @@ reordering, duplication and crashes):
   the `keep_dropped` names of dropped nodes, and at most `max_waiting_commands` commands wait.
 """
 
-from contextros.protocol.manager.base import NO_CHANGE, Key
+from contextros.protocol.manager.base import NO_CHANGE
 from contextros.protocol.manager.protocol import ManagerProtocol
+from contextros.protocol.manager.records import Key, ParticipantRecord
 from contextros.protocol.manager.recovery import RECOVERY_REQUESTER
 from contextros.protocol.manager.registry import (
     ADOPTABLE_EPOCH,
-    ParticipantRecord,
     ParticipantView,
     RegistryView,
 )

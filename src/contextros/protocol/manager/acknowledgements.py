@@ -8,27 +8,11 @@ naming the nodes and why. The answer carries its own epoch and that epoch's acti
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field
 
-from contextros.protocol.events import ActivationCommand, ActivationResult, ManagerAction, Reply
-from contextros.protocol.manager.base import NO_CHANGE, Key, ManagerBase
-from contextros.protocol.state import LayerState
+from contextros.protocol.events import ActivationResult, ManagerAction, Reply
+from contextros.protocol.manager.base import NO_CHANGE, ManagerBase
+from contextros.protocol.manager.records import Key, PendingActivation
 from contextros.protocol.validation import listing
-
-
-@dataclass
-class PendingActivation:
-    command: ActivationCommand
-    state: LayerState
-    started: float
-    deadline: float
-    waiting: set[Key]
-    acknowledged: set[Key] = field(default_factory=set)
-    lost: dict[Key, str] = field(default_factory=dict)
-    failed: dict[Key, str] = field(default_factory=dict)
-    changed: bool = True
-    # How the declared `after` orders moved the requested layers ("" if they did not).
-    note: str = ""
 
 
 class Acknowledgements(ManagerBase):

@@ -8,8 +8,6 @@ used once: an aborted one is skipped, so a vote always names one proposal.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 from contextros.protocol.events import (
     ActivationCommand,
     ActivationResult,
@@ -17,26 +15,10 @@ from contextros.protocol.events import (
     PublishProposal,
     Reply,
 )
-from contextros.protocol.manager.acknowledgements import PendingActivation
-from contextros.protocol.manager.base import Key, ManagerBase
+from contextros.protocol.manager.base import ManagerBase
+from contextros.protocol.manager.records import Key, PendingActivation, Transaction
 from contextros.protocol.state import LayerState
 from contextros.protocol.validation import listing
-
-
-@dataclass
-class Transaction:
-    """An atomic activation in its voting phase: `proposal` is committed only if every
-    target votes yes before `deadline`."""
-
-    command: ActivationCommand
-    proposal: LayerState
-    started: float
-    deadline: float
-    targets: set[Key]
-    timeout: float
-    # Kept by `_count_votes` between full counts: the targets whose vote is yes.
-    yes: set[Key] = field(default_factory=set)
-    counted: bool = False
 
 
 class AtomicVotes(ManagerBase):

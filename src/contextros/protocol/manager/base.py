@@ -4,8 +4,9 @@
 named after it: registry.py (who is live, their declarations, liveness), command_queue.py
 (validating and executing commands, holding them while they cannot be decided yet),
 acknowledgements.py (synchronous activations waiting for their nodes), atomic_votes.py
-(the two-phase atomic activation) and recovery.py (a (re)started manager's first state).
-A part calls another only through the methods declared abstract here.
+(the two-phase atomic activation) and recovery.py (a (re)started manager's first state);
+records.py holds the plain records they share. A part calls another only through the
+methods declared abstract here.
 """
 
 from __future__ import annotations
@@ -13,7 +14,6 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterable
-from typing import TYPE_CHECKING
 
 from contextros.protocol.events import (
     ActivationCommand,
@@ -22,18 +22,15 @@ from contextros.protocol.events import (
     PublishHeartbeat,
     PublishState,
 )
+from contextros.protocol.manager.records import (
+    Key,
+    ParticipantRecord,
+    PendingActivation,
+    Transaction,
+)
 from contextros.protocol.manager.settings import ManagerSettings
 from contextros.protocol.relations import DeclaredOrder, LayerDeclaration
 from contextros.protocol.state import INITIAL_STATE, LayerState
-
-if TYPE_CHECKING:
-    from contextros.protocol.manager.acknowledgements import PendingActivation
-    from contextros.protocol.manager.atomic_votes import Transaction
-    from contextros.protocol.manager.registry import ParticipantRecord
-
-# A participant is one process under one incarnation; a node name may (wrongly) be used
-# by two live processes at once, so the registry is keyed by both.
-Key = tuple[str, str]
 
 # The message of a command that leaves the configuration as it was (clients show it as is).
 NO_CHANGE = "no change"

@@ -10,8 +10,8 @@ recovery, for a participant implementing a layer nobody declared yet (`_held`). 
 from __future__ import annotations
 
 from contextros.protocol.events import ActivationCommand, ManagerAction, Reply
-from contextros.protocol.manager.acknowledgements import PendingActivation
 from contextros.protocol.manager.base import NO_CHANGE, ManagerBase
+from contextros.protocol.manager.records import PendingActivation
 from contextros.protocol.relations import (
     DeclaredOrder,
     LayerDeclaration,

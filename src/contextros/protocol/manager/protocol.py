@@ -12,8 +12,9 @@ from contextros.protocol.events import (
 from contextros.protocol.manager.acknowledgements import Acknowledgements
 from contextros.protocol.manager.atomic_votes import AtomicVotes
 from contextros.protocol.manager.command_queue import CommandQueue
+from contextros.protocol.manager.records import ParticipantRecord
 from contextros.protocol.manager.recovery import Recovery
-from contextros.protocol.manager.registry import ParticipantRecord, Registry
+from contextros.protocol.manager.registry import Registry
 from contextros.protocol.validation import command_problems
 
 

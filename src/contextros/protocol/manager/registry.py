@@ -20,19 +20,14 @@ from contextros.protocol.events import (
     ParticipantReport,
     ReportRejected,
 )
-from contextros.protocol.manager.base import Key, ManagerBase
+from contextros.protocol.manager.base import ManagerBase
+from contextros.protocol.manager.records import Key
 from contextros.protocol.relations import LayerDeclaration, merge_declarations
 from contextros.protocol.state import MAX_EPOCH, LayerState
 from contextros.protocol.validation import report_problems
 
 # The highest epoch a manager adopts from a report: half the range, the rest for its own states.
 ADOPTABLE_EPOCH = MAX_EPOCH // 2
-
-
-@dataclass
-class ParticipantRecord:
-    report: ParticipantReport
-    last_heard: float
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,191 @@
+"""Guards: a partial that applies only while a condition on its call holds (`when=`).
+
+Includes ContextPy3's guards ported: there a guard is a condition on the active layers, checked
+when the chain is composed; here it is a condition on each call (its arguments), which can
+read the active layers too.
+"""
+
+from __future__ import annotations
+
+import asyncio
+
+import pytest
+
+from contextros import (
+    Layer,
+    LayerDefinitionError,
+    NoImplementationError,
+    activate,
+    activate_for,
+    activated,
+    active_layers,
+    layered,
+    proceed,
+)
+
+Big, Wet, Logged = Layer("GuardBig"), Layer("GuardWet"), Layer("GuardLogged")
+
+
+class Cleaner:
+    def __init__(self) -> None:
+        self.log: list[str] = []
+
+    @layered
+    def clean(self, area: int) -> str:
+        return f"base {area}"
+
+    @clean.partial(Big, when=lambda self, area: area > 10)
+    def clean(self, area: int) -> str:
+        return "big " + proceed(self, area)
+
+    @clean.partial(Wet, when=lambda self, area: area % 2 == 0)
+    def clean(self, area: int) -> str:
+        return "wet " + proceed(self, area)
+
+
+def test_a_guarded_partial_applies_only_while_its_condition_holds() -> None:
+    cleaner = Cleaner()
+    with activated(Big):
+        assert cleaner.clean(20) == "big base 20"
+        assert cleaner.clean(5) == "base 5"  # skipped: the call goes on to the base
+    activate(Big)
+    assert cleaner.clean(11) == "big base 11"
+    assert cleaner.clean(3) == "base 3"
+
+
+def test_guards_compose_with_proceed_in_activation_order() -> None:
+    cleaner = Cleaner()
+    activate(Big, Wet)  # Wet newest: outermost
+    assert cleaner.clean(20) == "wet big base 20"
+    assert cleaner.clean(12) == "wet big base 12"
+    assert cleaner.clean(13) == "big base 13"  # Wet's guard false: straight to Big
+    assert cleaner.clean(4) == "wet base 4"  # Big's guard false: Wet proceeds to the base
+    assert cleaner.clean(3) == "base 3"
+
+
+def test_guards_apply_to_per_object_activation() -> None:
+    mine, other = Cleaner(), Cleaner()
+    activate_for(mine, Big)
+    assert mine.clean(30) == "big base 30" and mine.clean(1) == "base 1"
+    assert other.clean(30) == "base 30"
+
+
+def test_a_guard_on_before_after_and_around() -> None:
+    class Arm:
+        def __init__(self) -> None:
+            self.log: list[str] = []
+
+        @layered
+        def move(self, x: int) -> int:
+            return x
+
+        @move.before(Logged, when=lambda self, x: x > 0)
+        def move(self, x: int) -> None:
+            self.log.append(f"before {x}")
+
+        @move.after(Big, when=lambda self, x: x > 100)
+        def move(self, x: int, *, result: int) -> int:
+            return result * 2
+
+        @move.around(Wet, when=lambda self, x: x < 0)
+        def move(self, x: int) -> int:
+            return -proceed(self, -x)
+
+    arm = Arm()
+    activate(Logged, Big, Wet)
+    assert arm.move(5) == 5 and arm.log == ["before 5"]
+    assert arm.move(200) == 400
+    assert arm.move(-3) == -3 and arm.log == ["before 5", "before 200", "before 3"]
+
+
+def test_a_guard_sees_the_defaults_of_the_call() -> None:
+    @layered
+    def speed(limit: float = 1.0) -> float:
+        return limit
+
+    @speed.partial(Big, when=lambda limit=1.0: limit >= 1.0)
+    def speed(limit: float = 1.0) -> float:
+        return proceed(limit) * 10
+
+    activate(Big)
+    assert speed() == 10.0 and speed(0.5) == 0.5
+
+
+def test_a_false_guard_without_a_base_is_no_implementation() -> None:
+    @layered(base=False)
+    def plan(n: int) -> str:
+        """No base."""
+        return ""
+
+    @plan.partial(Big, when=lambda n: n > 0)
+    def plan(n: int) -> str:
+        return f"plan {n}"
+
+    activate(Big)
+    assert plan(2) == "plan 2"
+    with pytest.raises(NoImplementationError, match="plan"):
+        plan(-1)
+
+
+def test_async_partials_take_guards() -> None:
+    @layered
+    async def fetch(x: int) -> int:
+        return x
+
+    @fetch.partial(Big, when=lambda x: x > 1)
+    async def fetch(x: int) -> int:
+        return await proceed(x) * 10
+
+    activate(Big)
+    assert asyncio.run(fetch(2)) == 20 and asyncio.run(fetch(1)) == 1
+
+
+def test_replacing_a_partial_drops_its_guard() -> None:
+    @layered
+    def level(x: int) -> str:
+        return "base"
+
+    @level.partial(Big, when=lambda x: False)
+    def level(x: int) -> str:
+        return "big"
+
+    activate(Big)
+    assert level(1) == "base"
+
+    @level.partial(Big, replace=True)
+    def level(x: int) -> str:
+        return "big"
+
+    assert level(1) == "big"
+
+
+def test_a_guard_that_is_not_callable_is_refused() -> None:
+    @layered
+    def level() -> str:
+        return "base"
+
+    with pytest.raises(LayerDefinitionError, match=r"guard .* of .*level.*GuardBig.*callable"):
+        level.partial(Big, when=True)  # type: ignore[arg-type]
+
+
+# -- ContextPy3's guards, ported ---------------------------------------------------------
+# ContextPy3: `@around(layer, guard=lambda activelayers: ...)`: the advice is part of the
+# chain only while the guard holds on the active layers.
+
+
+def test_contextpy3_guard_on_the_active_layers() -> None:
+    class Greeting:
+        @layered
+        def greet(self) -> str:
+            return "Hello"
+
+        @greet.around(Big, when=lambda self: Wet in active_layers())
+        def greet(self) -> str:
+            return proceed(self) + " World"
+
+    greeting = Greeting()
+    with activated(Big):
+        assert greeting.greet() == "Hello"
+        with activated(Wet):
+            assert greeting.greet() == "Hello World"
+        assert greeting.greet() == "Hello"
