@@ -66,8 +66,9 @@ def wait_registry(
 
 
 def settle(client: LayerClient, *layers: str) -> Any:
-    """Make exactly `layers` active (in this order), whatever earlier tests left behind."""
-    current = list(client.query().active_layers)
+    """Make exactly `layers` active (in this order), whatever earlier tests left behind,
+    once the manager has its first state (a recovering manager publishes one when done)."""
+    current = list(wait_registry(client, lambda r: not r.recovering, what="recovery").active_layers)
     if current != list(layers):
         cleared = client.request([], current, synchronous=True, timeout=5)
         assert cleared.success, cleared.message
