@@ -70,8 +70,10 @@ demo-rescue: ros
 	$(PY) -m examples.rescue.demo
 
 # tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
+# Four workers on two cores: most tests wait on real processes and the network, not the CPU
+# (pytest used 1.2 cores with two workers).
 test: ros cpp $(VENV)/.stamp-dev
-	$(PY) -m pytest -n 2 -q -m "not slow"
+	$(PY) -m pytest -n 4 -q -m "not slow"
 
 # What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).
 test-slow: ros cpp $(VENV)/.stamp-dev
