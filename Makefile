@@ -11,11 +11,12 @@ unexport RMW_IMPLEMENTATION
 all: test
 
 # The package (editable) and the ROS 2 wheels: what the demo needs. uv installs them (from
-# the package index, like pip, 3x faster here); pip stays in the venv for users' commands.
+# the package index, like pip, 3x faster here); pip comes with the dev tools (tests build
+# the wheel with it).
 UV := $(VENV)/bin/uv pip install --quiet --python $(PY)
 $(VENV)/.stamp-base: pyproject.toml
-	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet 'uv>=0.9'
+	$(PYTHON) -m venv --without-pip $(VENV)
+	$(PYTHON) -m pip --python $(PY) install --quiet 'uv>=0.9'
 	$(UV) 'scikit-build-core>=0.11,<2' -r pyproject.toml --extra ros --extra ros-build
 	$(UV) --no-build-isolation --no-deps -e .
 	touch $@
@@ -84,7 +85,7 @@ fuzz: $(VENV)/.stamp-dev
 	CONTEXTROS_FUZZ_EXAMPLES=5000 $(PY) -m pytest -q tests/language/test_fuzz.py
 
 # The platform wheel into dist/ (docs/install.md), from the build tree `make` keeps.
-wheel: ros
+wheel: ros $(VENV)/.stamp-dev
 	$(PY) -m pip wheel --quiet --no-build-isolation --no-deps --wheel-dir dist .
 
 # The ROS-free part only (fast inner loop).
