@@ -136,16 +136,22 @@ class LayeredFunction:
                 f"    if not {self._runtime_key}._live_scopes:",
                 f"        {self._runtime_key}.back_to_direct({self._self_key})",
                 f"    return {self._head_key}({arguments})",
-                "try:",
-                f"    __contextros_head = __contextros_scope.heads[{self._self_key}]",
-                "except KeyError:",
-                f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                f"return __contextros_head({arguments})",
+                *self._through_scope(arguments),
             ],
             self._freevars,
             self.qualname,
             parameters,
         )
+
+    def _through_scope(self, arguments: str) -> list[str]:
+        """The end of a dispatcher: call the head of `__contextros_scope`'s configuration."""
+        return [
+            "try:",
+            f"    __contextros_head = __contextros_scope.heads[{self._self_key}]",
+            "except KeyError:",
+            f"    __contextros_head = __contextros_scope.head({self._self_key})",
+            f"return __contextros_head({arguments})",
+        ]
 
     def _receiver_dispatchers(
         self, parameters: str, arguments: str, receiver: str
@@ -180,11 +186,7 @@ class LayeredFunction:
                     f"({arguments})",
                     "if __contextros_scope is None:",
                     f"    return {self._head_key}({arguments})",
-                    "try:",
-                    f"    __contextros_head = __contextros_scope.heads[{self._self_key}]",
-                    "except KeyError:",
-                    f"    __contextros_head = __contextros_scope.head({self._self_key})",
-                    f"return __contextros_head({arguments})",
+                    *self._through_scope(arguments),
                 ],
                 self._freevars,
                 self.qualname,
