@@ -56,6 +56,12 @@ class Runtime {
 
   std::recursive_mutex mutex;
   std::map<std::string, LayerInfo> layers;
+  // What define_layer was given beyond the relations, by layer name.
+  struct Details {
+    std::string description;
+    LayerHooks hooks;
+  };
+  std::map<std::string, Details> details;
   Configuration active;
   std::uint64_t epoch = 0;
   // Bumped on every change of the decisive configuration or the layer definitions: thread
@@ -88,11 +94,34 @@ class Runtime {
       return {SwitchStatus::failed, epoch, error.what()};
     }
     if (next == active) return {SwitchStatus::applied, epoch, ""};
+    std::vector<std::string> leaving;
+    for (auto layer = active.rbegin(); layer != active.rend(); ++layer) {
+      if (std::find(next.begin(), next.end(), *layer) == next.end()) leaving.push_back(*layer);
+    }
+    for (const auto& layer : leaving) {
+      try {
+        run_hook(layer, false);
+      } catch (const HookError& error) {  // abandons the switch: nothing changed
+        return {SwitchStatus::failed, epoch, error.what()};
+      }
+    }
+    std::vector<std::string> arriving;
+    for (const auto& layer : next) {
+      if (std::find(active.begin(), active.end(), layer) == active.end()) arriving.push_back(layer);
+    }
     SwitchEvent event{epoch + 1, active, next};
     active = std::move(next);
     ++epoch;
     ++generation;
     rewire_all();
+    std::string failure;  // the first failing on_activate; the others still run
+    for (const auto& layer : arriving) {
+      try {
+        run_hook(layer, true);
+      } catch (const HookError& error) {
+        if (failure.empty()) failure = error.what();
+      }
+    }
     // Copied: an observer may unsubscribe (itself or another) from its callback.
     auto current = observers;
     for (auto& [id, observer] : current) {
@@ -101,7 +130,26 @@ class Runtime {
       } catch (...) {  // a failing observer must not undo or block the switch
       }
     }
-    return {SwitchStatus::applied, epoch, ""};
+    return {SwitchStatus::applied, epoch, failure};
+  }
+
+  // Runs a layer's on_activate (or on_deactivate) hook, if it has one; HookError if it throws.
+  void run_hook(const std::string& layer, bool activating) {
+    auto found = details.find(layer);
+    if (found == details.end()) return;
+    // A copy: the hook may redefine its own layer.
+    const std::function<void()> hook =
+        activating ? found->second.hooks.on_activate : found->second.hooks.on_deactivate;
+    if (!hook) return;
+    const std::string kind = activating ? "on_activate" : "on_deactivate";
+    try {
+      hook();
+    } catch (const std::exception& error) {
+      throw HookError(kind + " hook of layer " + layer + " failed: " + error.what(), layer);
+    } catch (...) {
+      throw HookError(kind + " hook of layer " + layer + " failed (a non-standard exception)",
+                      layer);
+    }
   }
 
   SwitchOutcome request(Plan plan, SwitchCallback on_settled) {
@@ -202,7 +250,9 @@ bool operator==(const LayerInfo& a, const LayerInfo& b) {
          a.after == b.after && a.group == b.group;
 }
 
-void define_layer(const LayerInfo& layer) {
+void define_layer(const LayerInfo& layer) { define_layer(layer, "", {}); }
+
+void define_layer(const LayerInfo& layer, std::string description, LayerHooks hooks) {
   if (!detail::is_identifier(layer.name)) {
     throw LayerDefinitionError("layer name '" + layer.name + "' is not an identifier");
   }
@@ -228,7 +278,15 @@ void define_layer(const LayerInfo& layer) {
   Runtime& runtime = Runtime::instance();
   std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
   runtime.layers[layer.name] = layer;
+  runtime.details[layer.name] = {std::move(description), std::move(hooks)};
   ++runtime.generation;  // group membership may change what scopes replay to
+}
+
+std::string layer_description(std::string_view layer) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  auto found = runtime.details.find(std::string(layer));
+  return found != runtime.details.end() ? found->second.description : std::string();
 }
 
 std::vector<LayerInfo> defined_layers() {

@@ -25,7 +25,8 @@ enum class SwitchStatus { applied, deferred, failed };
 struct SwitchOutcome {
   SwitchStatus status;
   std::uint64_t epoch;  // the epoch after the switch (applied), else the current one
-  std::string error;    // why it failed ("" unless failed)
+  std::string error;    // why it failed; with applied, a layer's on_activate hook that threw
+                        // (the new configuration stays); else ""
 };
 
 using SwitchCallback = std::function<void(const SwitchOutcome&)>;

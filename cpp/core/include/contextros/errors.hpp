@@ -34,6 +34,18 @@ class LayerDefinitionError : public LayerError {
   using LayerError::LayerError;
 };
 
+// A layer's on_activate or on_deactivate hook threw: the message names the layer and the
+// hook and holds the hook's own message. A decisive switch reports it in its outcome.
+class HookError : public LayerError {
+ public:
+  HookError(const std::string& message, std::string layer)
+      : LayerError(message), layer_(std::move(layer)) {}
+  const std::string& layer() const noexcept { return layer_; }
+
+ private:
+  std::string layer_;
+};
+
 // A layered call could not find an implementation to run.
 class DispatchError : public LayerError {
  public:

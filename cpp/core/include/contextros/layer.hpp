@@ -1,6 +1,7 @@
 // Layers as values: a name and its relations, registered process-wide.
 #pragma once
 
+#include <functional>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -29,6 +30,24 @@ bool is_layer_name(std::string_view name);
 // Throws LayerDefinitionError for an inconsistent declaration. Generated code calls this at
 // static initialisation for every layer of its layer file.
 void define_layer(const LayerInfo& layer);
+
+// What a layer runs when a decisive switch turns it on or off (no arguments), as the Python
+// core's on_activate / on_deactivate. On a switch: on_deactivate of each leaving layer
+// (newest first, while it is still active), then the new configuration is installed, then
+// on_activate of each arriving layer (in activation order). A throwing on_deactivate
+// abandons the switch (outcome failed, nothing changed); a throwing on_activate leaves the
+// new configuration in place (outcome applied, with the error). Run on the switching thread
+// while switches are serialised, as observers are.
+struct LayerHooks {
+  std::function<void()> on_activate;
+  std::function<void()> on_deactivate;
+};
+
+// define_layer with the layer's description (its documentation, "" for none) and hooks.
+void define_layer(const LayerInfo& layer, std::string description, LayerHooks hooks = {});
+
+// The description a layer was defined with ("" for none, or for a layer nobody defined).
+std::string layer_description(std::string_view layer);
 
 // Every layer defined in this process (the current definition of each name), by name.
 std::vector<LayerInfo> defined_layers();

@@ -19,7 +19,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from contextros.language.checker import checked
-from contextros.language.cpp.parser import CppFunction, CppLayerFile
+from contextros.language.cpp.parser import CppFunction, CppHook, CppLayerFile
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
 from contextros.language.syntax import Function, LayerDecl
 
@@ -266,6 +266,10 @@ class _Emitter:
             edits.extend((a, b, "") for a, b in function.defaults)
         if strip_exception_specs:  # a member specialisation has the template's (none)
             edits.extend((a, b, "") for a, b in function.exception_specs)
+        if function.guard is not None and end > function.body_start:
+            # `when (CONDITION)` goes; the body starts by passing the call on when it fails.
+            edits.append((*function.when_span, ""))
+            edits.append((function.body_start + 1, function.body_start + 1, self.guard(function)))
         # After each edit, a #line and blanks put the rest back at its own line and column,
         # so diagnostics point exactly at the layer file's text.
         text = ""
@@ -277,6 +281,20 @@ class _Emitter:
                 line, col = self.position(position)
                 text += f"\n{self.line(line)}\n{' ' * (col - 1)}"
         return text + _unix(self.source[position:end])
+
+    def guard(self, function: CppFunction) -> str:
+        """The first statement of a guarded body: the condition at its place in the layer
+        file; when it does not hold, the call goes on to the next implementation."""
+        start, end = function.condition_span
+        line, col = self.position(start)
+        arguments = ", ".join(
+            f"static_cast<decltype({n})&&>({n})" for n in function.parameter_names if n
+        )
+        condition = _unix(self.source[start:end])
+        return (
+            f" if (!(\n{self.line(line)}\n{' ' * (col - 1)}{condition})) "
+            f"return proceed({arguments});"
+        )
 
     def placed(self, function: CppFunction, text: str, prefix: str = "") -> str:
         line, col = self.position(function.start)
@@ -291,8 +309,13 @@ class _Emitter:
         out = [
             f"\n{_RULE}\n// The layers of {self.name} and their relations, defined in the runtime "
             "at static\n// initialisation (contextros::defined_layers() lists them).\n",
-            "namespace {\n\n[[maybe_unused]] const bool contextros_layers_defined = [] {\n",
+            "namespace {\n\n",
         ]
+        hooks = [h for layer in self.unique_layers() for h in layer.hooks]
+        for hook in hooks:
+            assert isinstance(hook, CppHook)
+            out.append(self.hook(hook))
+        out.append("[[maybe_unused]] const bool contextros_layers_defined = [] {\n")
         for layer in self.unique_layers():
             fields = [
                 _quote(layer.name),
@@ -301,9 +324,25 @@ class _Emitter:
                 _names(r.name for r in layer.after),
                 _quote(group_of.get(layer.name, "")),
             ]
-            out.append(f"  ::contextros::define_layer({{{', '.join(fields)}}});\n")
+            arguments = f"{{{', '.join(fields)}}}"
+            if layer.description is not None or layer.hooks:
+                arguments += f", {_quote(layer.description or '')}"
+            if layer.hooks:
+                by_event = {h.event: f"&{h.generated_name}" for h in layer.hooks}
+                on, off = by_event.get("activate", "{}"), by_event.get("deactivate", "{}")
+                arguments += f", {{{on}, {off}}}"
+            out.append(f"  ::contextros::define_layer({arguments});\n")
         out.append("  return true;\n}();\n\n}  // namespace\n")
         return "".join(out)
+
+    def hook(self, hook: CppHook) -> str:
+        """`on activate { ... }` as a function of no arguments, its body at its place."""
+        line, col = self.position(hook.body_start)
+        body = _unix(self.source[hook.body_start : hook.body_end])
+        return (
+            f"{self.line(hook.at.line)}\nvoid {hook.generated_name}()\n"
+            f"{self.line(line)}\n{' ' * (col - 1)}{body}\n{_RESET}\n\n"
+        )
 
     def unique_layers(self) -> list[LayerDecl]:
         seen: dict[str, LayerDecl] = {}

@@ -27,6 +27,8 @@ from contextros.language.syntax import (
     BaseBlock,
     Function,
     GroupDecl,
+    Guard,
+    Hook,
     LayerDecl,
     LayerFile,
     Position,
@@ -168,10 +170,30 @@ class CppFunction(Function):
     defaults: tuple[tuple[int, int], ...] = ()  # ` = value` of parameters
     exception_specs: tuple[tuple[int, int], ...] = ()  # `noexcept(...)`, `throw(...)`
     parameter_names: tuple[str | None, ...] = ()
+    body_start: int = 0  # at the body's '{'
+    when_span: tuple[int, int] = (0, 0)  # `when (CONDITION)`, cut from the definition
+    condition_span: tuple[int, int] = (0, 0)  # CONDITION itself
 
     @property
     def key(self) -> str:
         return f"{self.owner}::{self.name}" if self.owner else self.name
+
+
+@dataclass
+class CppHook(Hook):
+    """`on activate { ... }`: the body is C++, a compound statement (offsets of its braces)."""
+
+    body_start: int = 0
+    body_end: int = 0
+
+
+@dataclass
+class _BlockItems:
+    """What a block holds besides function definitions, found in its tokens: spans to hide
+    from tree-sitter (each item is the layer language's, not C++) and the guards by offset."""
+
+    masks: list[tuple[int, int]] = field(default_factory=list)
+    guards: list[tuple[int, int, int, int]] = field(default_factory=list)  # when, ), cond
 
 
 @dataclass
@@ -596,7 +618,8 @@ class _Parser:
         if close is None:
             return len(found)
         result.layers.append(layer)
-        layer.functions.extend(self._functions(found[j], found[close], layer.name, result))
+        items = self._block_items(found[j : close + 1], layer)
+        layer.functions.extend(self._functions(found[j], found[close], layer.name, result, items))
         return close + 1
 
     def _base(self, found: list[Token], i: int, result: CppLayerFile) -> int:
@@ -611,7 +634,8 @@ class _Parser:
             return len(found)
         block = BaseBlock(self.at(found[i].start))
         result.bases.append(block)
-        block.functions.extend(self._functions(found[j], found[close], None, result))
+        items = self._block_items(found[j : close + 1], None)
+        block.functions.extend(self._functions(found[j], found[close], None, result, items))
         return close + 1
 
     def _group(self, found: list[Token], i: int, result: CppLayerFile) -> int:
@@ -665,10 +689,180 @@ class _Parser:
 
     # -- functions ------------------------------------------------------------------------
 
+    def _block_items(self, block: list[Token], layer: LayerDecl | None) -> _BlockItems:
+        """The layer language's items inside a block, at its top level (outside braces): a
+        description (a string literal first), `on activate { ... }` / `on deactivate { ... }`
+        hooks and `when (CONDITION)` guards between a definition's declarator and body."""
+        items = _BlockItems()
+        where = f"layer {layer.name}" if layer is not None else "the base block"
+        braces = parens = 0
+        item_start = True  # at the start of an item (not inside a definition)
+        declarator = False  # a definition's parameter list has closed
+        k = 1
+        end = len(block) - 1  # the closing ']'
+        while k < end:
+            token = block[k]
+            text = token.text
+            if braces or parens:
+                braces += {"{": 1, "}": -1}.get(text, 0)
+                parens += {"(": 1, ")": -1}.get(text, 0) if not braces else 0
+                if not braces and not parens:
+                    item_start, declarator = text == "}", text == ")" or declarator
+                    declarator = declarator and text != "}"
+                k += 1
+                continue
+            if token.kind in ("string_literal", "raw_string_literal") and item_start:
+                k = self._description(block, k, end, layer, where, items)
+                continue
+            if text == "on" and item_start and k + 1 < end and block[k + 1].text.isidentifier():
+                k = self._hook(block, k, end, layer, where, items)
+                continue
+            if text == "when" and declarator and k + 1 < end and block[k + 1].text == "(":
+                k = self._guard(block, k, end, items)
+                continue
+            braces += text == "{"
+            parens += text == "("
+            item_start = text == ";"
+            k += 1
+        return items
+
+    def _description(
+        self,
+        block: list[Token],
+        k: int,
+        end: int,
+        layer: LayerDecl | None,
+        where: str,
+        items: _BlockItems,
+    ) -> int:
+        start = k
+        parts: list[str] = []
+        while k < end and block[k].kind in ("string_literal", "raw_string_literal"):
+            parts.append(block[k].text)
+            k += 1
+        stop = block[k - 1].end
+        if k < end and block[k].text == ";":
+            stop = block[k].end
+            k += 1
+        items.masks.append((block[start].start, stop))
+        if layer is None or start != 1:
+            self.error(
+                f"a description is a string literal first in a layer's block, not here in {where}",
+                block[start].start,
+            )
+            return k
+        text: list[str] = []
+        for part in parts:
+            if not (part.startswith('"') and part.endswith('"') and len(part) >= 2):
+                self.error(
+                    "a layer's description is an ordinary string literal (\"...\"), "
+                    f"found {part[:20]!r}",
+                    block[start].start,
+                )
+                return k
+            text.append(_unescape(part[1:-1]))
+        layer.description = "".join(text)
+        return k
+
+    def _hook(
+        self,
+        block: list[Token],
+        k: int,
+        end: int,
+        layer: LayerDecl | None,
+        where: str,
+        items: _BlockItems,
+    ) -> int:
+        on, event = block[k], block[k + 1]
+        if event.text not in ("activate", "deactivate"):
+            self.error(
+                f"expected 'activate' or 'deactivate' after 'on', found {event.text!r}", event.start
+            )
+            return k + 2
+        if k + 2 >= end or block[k + 2].text != "{":
+            where_at = block[k + 2].start if k + 2 < end else event.end
+            self.error(f"expected '{{' after 'on {event.text}': the hook's body", where_at)
+            return k + 2
+        depth = 0
+        close = k + 2
+        while close < end:
+            depth += {"{": 1, "}": -1}.get(block[close].text, 0)
+            if depth == 0:
+                break
+            close += 1
+        items.masks.append((on.start, block[close].end))
+        if layer is None:
+            self.error(
+                f"'on {event.text}' belongs to a layer: {where} has no hooks", on.start
+            )
+            return close + 1
+        layer.hooks.append(
+            CppHook(
+                event=event.text,
+                layer=layer.name,
+                at=self.at(on.start),
+                lines=[],
+                generated_name=f"on_{event.text}_{layer.name}",
+                body_start=block[k + 2].start,
+                body_end=block[close].end,
+            )
+        )
+        return close + 1
+
+    def _guard(self, block: list[Token], k: int, end: int, items: _BlockItems) -> int:
+        depth = 0
+        close = k + 1
+        while close < end:
+            depth += {"(": 1, ")": -1}.get(block[close].text, 0)
+            if depth == 0:
+                break
+            close += 1
+        if close >= end:
+            self.error("this guard's '(' is not closed", block[k + 1].start)
+            return end
+        if close == k + 2:
+            self.error("expected a condition in 'when ( )'", block[k + 1].end)
+        items.masks.append((block[k].start, block[close].end))
+        items.guards.append(
+            (block[k].start, block[close].end, block[k + 1].end, block[close].start)
+        )
+        return close + 1
+
     def _functions(
-        self, opening: Token, closing: Token, layer: str | None, result: CppLayerFile
+        self,
+        opening: Token,
+        closing: Token,
+        layer: str | None,
+        result: CppLayerFile,
+        items: _BlockItems,
     ) -> list[Function]:
         owner_text = f"layer {layer}" if layer is not None else "the base block"
+        original = self.text
+        if items.masks:  # the layer language's items become blanks: C++ is left
+            masked = self.source
+            for a, b in items.masks:
+                masked = masked[:a] + "".join(c if c in "\r\n" else " " for c in masked[a:b]) + masked[b:]
+            self.text = SourceText(masked)
+        try:
+            functions = self._parsed_functions(opening, closing, layer, owner_text, items)
+        finally:
+            self.text = original
+        hooks = any(m for m in items.masks if m not in [(g[0], g[1]) for g in items.guards])
+        if not functions and not hooks and not self.sink.has_errors:
+            self.error(
+                f"{owner_text} is empty: expected function definitions between '[' and ']'",
+                opening.start,
+            )
+        return functions
+
+    def _parsed_functions(
+        self,
+        opening: Token,
+        closing: Token,
+        layer: str | None,
+        owner_text: str,
+        items: _BlockItems,
+    ) -> list[Function]:
         tree = self.text.parse(opening.end, closing.start)
         functions: list[Function] = []
         for child in tree.root_node.named_children:
@@ -694,13 +888,26 @@ class _Parser:
                 continue
             function = self._function(child, layer)
             if function is not None:
+                self._attach_guard(function, items)
                 functions.append(function)
-        if not functions and not self.sink.has_errors:
-            self.error(
-                f"{owner_text} is empty: expected function definitions between '[' and ']'",
-                opening.start,
-            )
         return functions
+
+    def _attach_guard(self, function: CppFunction, items: _BlockItems) -> None:
+        for when, close, cond_start, cond_end in items.guards:
+            if function.declarator_end <= when < function.body_start:
+                function.when_span = (when, close)
+                function.condition_span = (cond_start, cond_end)
+                text = self.source[cond_start:cond_end]
+                offset = cond_start + len(text) - len(text.lstrip())
+                function.guard = Guard(text.strip(), self.at(offset))
+                if None in function.parameter_names:
+                    self.error(
+                        f"a guarded implementation of {function.key} must name every "
+                        "parameter: the calls its guard turns away go on with them to the next "
+                        "implementation",
+                        offset,
+                    )
+                return
 
     def _syntax_error(self, node: tree_sitter.Node) -> None:
         start, end = self.text.span(node)
@@ -793,6 +1000,7 @@ class _Parser:
                 if child.type in ("noexcept", "throw_specifier")
             ),
             parameter_names=tuple(names),
+            body_start=self.text.span(body)[0],
         )
 
     def _shape(
@@ -928,3 +1136,20 @@ def _calls(node: tree_sitter.Node) -> list[tree_sitter.Node]:
         stack.extend(current.named_children)
     found.sort(key=lambda n: n.start_byte)
     return found
+
+
+_ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "0": "\0"}
+
+
+def _unescape(text: str) -> str:
+    """The value of an ordinary C++ string literal's content (the simple escapes)."""
+    out: list[str] = []
+    i = 0
+    while i < len(text):
+        if text[i] == "\\" and i + 1 < len(text):
+            out.append(_ESCAPES.get(text[i + 1], text[i + 1]))
+            i += 2
+            continue
+        out.append(text[i])
+        i += 1
+    return "".join(out)
