@@ -41,7 +41,7 @@ def cxx(*args: str | Path, cwd: Path) -> subprocess.CompletedProcess[str]:
     )
 
 
-@pytest.mark.parametrize("name", ["paper_listing1", "robot"])
+@pytest.mark.parametrize("name", ["paper_listing1", "robot", "guards"])
 def test_generated_code_matches_the_golden_files(name: str) -> None:
     source = (CPP_FIXTURES / f"{name}.cpp.layers").read_text()
     compiled = compile_cpp(source, f"{name}.cpp.layers", output=f"{name}.layers.cpp")

@@ -102,6 +102,51 @@ BROKEN = {
         10,
         "cannot layer nav::speed: nav is a namespace",
     ),
+    "guard on a base function": (
+        "base [\nint f(int x) when (x > 1) { return x; }\n]\n",
+        2,
+        20,
+        "a guard ('when ...') belongs to a layer's partial",
+    ),
+    "guard with an unnamed parameter": (
+        "base [\nint f(int x, int y) { return x + y; }\n]\n"
+        "Layer A [\nint f(int x, int) when (x > 1) { return 2; }\n]\n",
+        5,
+        25,
+        "a guarded implementation of f must name every parameter",
+    ),
+    "guard not closed": (
+        "Layer A [\nint f(int x) when (x > 1 { return 1; }\n]\n",
+        2,
+        19,
+        "not closed",
+    ),
+    "hook in the base block": (
+        "base [\n" + OK + "on activate { }\n]\n",
+        3,
+        1,
+        "'on activate' belongs to a layer: the base block has no hooks",
+    ),
+    "hook misspelt": ("Layer A [\n" + OK + "on activated { }\n]\n", 3, 4, "found 'activated'"),
+    "hook without a body": ("Layer A [\n" + OK + "on activate;\n]\n", 3, 12, "expected '{'"),
+    "hook twice": (
+        "Layer A [\n" + OK + "on activate { }\non activate { }\n]\n",
+        4,
+        1,
+        "already has an 'on activate' hook at line 3",
+    ),
+    "description not first": (
+        "Layer A [\n" + OK + '"late";\n]\n',
+        3,
+        1,
+        "a description is a string literal first in a layer's block",
+    ),
+    "description not an ordinary literal": (
+        'Layer A [\nu8"wide"\n' + OK + "]\n",
+        2,
+        1,
+        "a layer's description is an ordinary string literal",
+    ),
     "unknown class": (
         "Layer A [\nint Robot::f() { return 1; }\n]\n",
         2,
@@ -195,7 +240,9 @@ def _mutations(source: str, rng: random.Random) -> str:
     return "".join(text)
 
 
-@pytest.mark.parametrize("fixture", ["robot.cpp.layers", "paper_listing1.cpp.layers"])
+@pytest.mark.parametrize(
+    "fixture", ["robot.cpp.layers", "paper_listing1.cpp.layers", "guards.cpp.layers"]
+)
 def test_mutated_files_only_raise_the_languages_errors(fixture: str) -> None:
     original = (CPP_FIXTURES / fixture).read_text()
     rng = random.Random(fixture)

@@ -9,6 +9,7 @@
 
 #include "contextros/contextros.hpp"
 #include "fixtures.hpp"
+#include "guards.layers.hpp"
 #include "robot.layers.hpp"
 
 namespace {
@@ -66,6 +67,40 @@ TEST_F(Generated, ScopedActivationOfGeneratedLayersIsPerThread) {
   EXPECT_DOUBLE_EQ(speed(), 2.0);
   EXPECT_EQ(other, std::to_string(1.0));
   EXPECT_EQ(robot.getPos().y, 139.69);
+}
+
+// guards.cpp.layers: the Python flavour's tests/core/test_guards.py, in C++.
+TEST_F(Generated, AGuardedPartialAppliesOnlyWhileItsConditionHolds) {
+  Cleaner cleaner;
+  {
+    contextros::ScopedActivation big("GuardBig");
+    EXPECT_EQ(cleaner.clean(20), "big base 20");
+    EXPECT_EQ(cleaner.clean(5), "base 5");  // skipped: the call goes on to the base
+  }
+  contextros::activate("GuardBig");
+  EXPECT_EQ(cleaner.clean(11), "big base 11");
+  EXPECT_EQ(cleaner.clean(3), "base 3");
+}
+
+TEST_F(Generated, GuardsComposeWithProceedInActivationOrder) {
+  Cleaner cleaner;
+  contextros::set_active({"GuardBig", "GuardWet"});  // GuardWet newest: outermost
+  EXPECT_EQ(cleaner.clean(20), "wet big base 20");
+  EXPECT_EQ(cleaner.clean(12), "wet big base 12");
+  EXPECT_EQ(cleaner.clean(13), "big base 13");  // GuardWet's guard false: straight to GuardBig
+  EXPECT_EQ(cleaner.clean(4), "wet base 4");    // GuardBig's false: GuardWet proceeds to the base
+  EXPECT_EQ(cleaner.clean(3), "base 3");
+  EXPECT_EQ(reach(-4), 40);  // a guarded free function
+  EXPECT_EQ(reach(4), 4);
+}
+
+TEST_F(Generated, HooksAndDescriptionsFromTheLayerFile) {
+  guard_events.clear();
+  EXPECT_EQ(contextros::layer_description("GuardBig"), "Large areas: the big brush.");
+  EXPECT_EQ(contextros::layer_description("GuardWet"), "");
+  contextros::set_active({"GuardBig", "GuardWet"});
+  contextros::set_active({});
+  EXPECT_EQ(guard_events, (Names{"GuardBig on", "GuardWet off", "GuardBig off"}));
 }
 
 }  // namespace

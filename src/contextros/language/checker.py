@@ -436,9 +436,7 @@ class _Checker:
                     layer.at.col,
                 )
             taken[layer.name] = f"layer {layer.name!r}"
-            if self.file.language != "python":
-                continue
-            # Hooks compile to module-level functions (on_activate_<Layer>, ...).
+            # Hooks compile to functions of the module (on_activate_<Layer>, ...).
             hook_lines: dict[str, int] = {}
             for hook in layer.hooks:
                 if hook.event in hook_lines:

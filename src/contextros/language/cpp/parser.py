@@ -193,6 +193,7 @@ class _BlockItems:
     from tree-sitter (each item is the layer language's, not C++) and the guards by offset."""
 
     masks: list[tuple[int, int]] = field(default_factory=list)
+    broken: bool = False  # an item was reported: the block's C++ is not parsed
     guards: list[tuple[int, int, int, int]] = field(default_factory=list)  # when, ), cond
 
 
@@ -695,6 +696,7 @@ class _Parser:
         hooks and `when (CONDITION)` guards between a definition's declarator and body."""
         items = _BlockItems()
         where = f"layer {layer.name}" if layer is not None else "the base block"
+        errors = len(self.sink.items)
         braces = parens = 0
         item_start = True  # at the start of an item (not inside a definition)
         declarator = False  # a definition's parameter list has closed
@@ -724,6 +726,7 @@ class _Parser:
             parens += text == "("
             item_start = text == ";"
             k += 1
+        items.broken = len(self.sink.items) > errors
         return items
 
     def _description(
@@ -755,7 +758,7 @@ class _Parser:
         for part in parts:
             if not (part.startswith('"') and part.endswith('"') and len(part) >= 2):
                 self.error(
-                    "a layer's description is an ordinary string literal (\"...\"), "
+                    'a layer\'s description is an ordinary string literal ("..."), '
                     f"found {part[:20]!r}",
                     block[start].start,
                 )
@@ -792,9 +795,7 @@ class _Parser:
             close += 1
         items.masks.append((on.start, block[close].end))
         if layer is None:
-            self.error(
-                f"'on {event.text}' belongs to a layer: {where} has no hooks", on.start
-            )
+            self.error(f"'on {event.text}' belongs to a layer: {where} has no hooks", on.start)
             return close + 1
         layer.hooks.append(
             CppHook(
@@ -841,10 +842,15 @@ class _Parser:
         if items.masks:  # the layer language's items become blanks: C++ is left
             masked = self.source
             for a, b in items.masks:
-                masked = masked[:a] + "".join(c if c in "\r\n" else " " for c in masked[a:b]) + masked[b:]
+                blank = "".join(c if c in "\r\n" else " " for c in masked[a:b])
+                masked = masked[:a] + blank + masked[b:]
             self.text = SourceText(masked)
         try:
-            functions = self._parsed_functions(opening, closing, layer, owner_text, items)
+            functions = (
+                []
+                if items.broken
+                else self._parsed_functions(opening, closing, layer, owner_text, items)
+            )
         finally:
             self.text = original
         hooks = any(m for m in items.masks if m not in [(g[0], g[1]) for g in items.guards])
