@@ -33,7 +33,8 @@ struct Settled {
   SwitchOutcome outcome;
 };
 
-// The scoped activations of the calling thread, and the chain heads composed for them.
+// The scoped activations of the calling thread, and the chain heads composed for them (and
+// for the objects with layers of their own it called methods on).
 struct ThreadScopes {
   std::vector<Step> steps;
   std::uint64_t generation = 0;  // of `effective`; 0 = stale
@@ -42,10 +43,20 @@ struct ThreadScopes {
     std::uint64_t generation;
     const void* head;
   };
-  std::map<const LayeredBase*, Cached> heads;  // valid for `generation` only
+  // By function and receiver (null for none); valid for `generation` only.
+  std::map<std::pair<const LayeredBase*, const void*>, Cached> heads;
 };
 
 thread_local ThreadScopes thread_scopes;
+
+std::vector<std::string> checked_names(const std::vector<std::string>& names) {
+  for (const auto& name : names) {
+    if (!is_identifier(name)) {
+      throw LayerDefinitionError("'" + name + "' is not a layer name (an identifier)");
+    }
+  }
+  return names;
+}
 
 class Runtime {
  public:
@@ -73,6 +84,9 @@ class Runtime {
   std::map<std::uint64_t, std::function<void(const SwitchEvent&)>> observers;
   std::uint64_t next_observer = 1;
   int live_scopes = 0;
+  // The objects with layers of their own (activate_for), by address: their steps, replayed
+  // on the decisive configuration.
+  std::map<const void*, std::vector<Step>> receivers;
 
   Definitions definitions() {
     return [this](const std::string& name) {
@@ -82,7 +96,9 @@ class Runtime {
   }
 
   void rewire_all() {
-    for (LayeredBase* function : functions) function->rewire(active, live_scopes > 0);
+    for (LayeredBase* function : functions) {
+      function->rewire(active, live_scopes > 0, !receivers.empty());
+    }
   }
 
   // Applies `plan` now (lock held); the outcome says what became of it.
@@ -176,16 +192,52 @@ class Runtime {
     }
     return scopes.effective;
   }
-};
 
-std::vector<std::string> checked_names(const std::vector<std::string>& names) {
-  for (const auto& name : names) {
-    if (!is_identifier(name)) {
-      throw LayerDefinitionError("'" + name + "' is not a layer name (an identifier)");
+  // The decisive configuration with `receiver`'s own layers (lock held). A level that would
+  // break a relation with the decisive configuration is suspended: skipped for as long as
+  // the conflict lasts (a decisive switch is never refused because of an object).
+  Configuration object_level(const void* receiver) {
+    auto found = receiver ? receivers.find(receiver) : receivers.end();
+    if (found == receivers.end()) return active;
+    Configuration candidate = replay(active, found->second, definitions());
+    try {
+      validate(candidate, definitions());
+    } catch (const RelationError&) {
+      return active;
     }
+    return candidate;
   }
-  return names;
-}
+
+  // What a call on `receiver` runs in this thread: its level, then the thread's scopes.
+  Configuration effective_for(ThreadScopes& scopes, const void* receiver) {
+    if (!receiver || !receivers.count(receiver)) return effective(scopes);
+    return replay(object_level(receiver), scopes.steps, definitions());
+  }
+
+  // Adds steps to `receiver`'s level, validated first (RelationError: nothing changed).
+  void add_steps(const void* receiver, const std::vector<std::string>& layers, bool activating) {
+    std::vector<Step> steps = receivers.count(receiver) ? receivers[receiver] : std::vector<Step>{};
+    if (!steps.empty()) {
+      try {
+        validate(replay(active, steps, definitions()), definitions());
+      } catch (const RelationError& error) {
+        throw RelationError("this object's own layers are suspended (" + std::string(error.what()) +
+                                "): reset_for() it before changing them",
+                            error.layers());
+      }
+    }
+    for (const auto& name : checked_names(layers)) steps.push_back({activating, name});
+    Configuration candidate = replay(active, steps, definitions());
+    try {
+      validate(candidate, definitions());
+    } catch (const RelationError& error) {
+      throw RelationError(std::string(error.what()) + ", for this object", error.layers());
+    }
+    receivers[receiver] = std::move(steps);
+    ++generation;
+    rewire_all();
+  }
+};
 
 }  // namespace
 
@@ -206,30 +258,38 @@ void LayeredBase::enroll() {
   std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
   runtime.functions.push_back(this);
   enrolled_ = true;
-  rewire(runtime.active, runtime.live_scopes > 0);
+  rewire(runtime.active, runtime.live_scopes > 0, !runtime.receivers.empty());
 }
 
-const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose) {
+const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose,
+                        const void* receiver) {
   ThreadScopes& scopes = thread_scopes;
-  if (scopes.steps.empty()) return decisive;
+  if (scopes.steps.empty() && !receiver) return decisive;
   Runtime& runtime = Runtime::instance();
   const std::uint64_t generation = runtime.generation.load(std::memory_order_acquire);
+  const auto key = std::make_pair(&function, receiver);
   if (scopes.generation == generation) {
-    auto cached = scopes.heads.find(&function);
+    auto cached = scopes.heads.find(key);
     if (cached != scopes.heads.end() && cached->second.generation == generation) {
       return cached->second.head;
     }
   }
   std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
-  const Configuration& layers = runtime.effective(scopes);
-  const void* head = compose(function, layers);
-  scopes.heads[&function] = {scopes.generation, head};
+  runtime.effective(scopes);  // brings the thread's cache to the current generation
+  const void* head = compose(function, runtime.effective_for(scopes, receiver));
+  scopes.heads[key] = {scopes.generation, head};
   return head;
 }
 
-void throw_no_implementation(const std::string& function) {
+void throw_no_implementation(const std::string& function, const void* receiver) {
   std::string active;
-  for (const auto& name : effective_layers()) active += (active.empty() ? "" : ", ") + name;
+  Configuration seen;
+  {
+    Runtime& runtime = Runtime::instance();
+    std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+    seen = runtime.effective_for(thread_scopes, receiver);
+  }
+  for (const auto& name : seen) active += (active.empty() ? "" : ", ") + name;
   throw NoImplementationError(function + " has no base implementation and no active layer " +
                               "refines it (active layers: " + (active.empty() ? "none" : active) +
                               ")");
@@ -446,6 +506,36 @@ CriticalSection::~CriticalSection() {
     }
   }
 }
+
+namespace detail {
+
+void activate_for(const void* receiver, const std::vector<std::string>& layers) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.add_steps(receiver, layers, true);
+}
+
+void deactivate_for(const void* receiver, const std::vector<std::string>& layers) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  runtime.add_steps(receiver, layers, false);
+}
+
+void reset_for(const void* receiver) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  if (!runtime.receivers.erase(receiver)) return;
+  ++runtime.generation;
+  runtime.rewire_all();
+}
+
+std::vector<std::string> layers_for(const void* receiver) {
+  Runtime& runtime = Runtime::instance();
+  std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
+  return runtime.effective_for(thread_scopes, receiver);
+}
+
+}  // namespace detail
 
 ScopedActivation::ScopedActivation(std::string_view layer) : ScopedActivation(layer, true) {}
 

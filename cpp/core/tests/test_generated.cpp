@@ -103,4 +103,84 @@ TEST_F(Generated, HooksAndDescriptionsFromTheLayerFile) {
   EXPECT_EQ(guard_events, (Names{"GuardBig on", "GuardWet off", "GuardBig off"}));
 }
 
+// Per-object activation (activate_for), on the generated methods of both fixtures.
+// Objects are known by address: each test forgets its objects' layers when they go.
+template <class T>
+struct Forgotten {
+  ~Forgotten() { contextros::reset_for(object); }
+  const T& object;
+};
+
+TEST_F(Generated, ALayerActiveForOneObjectOnly) {
+  Robot mine, other;
+  Forgotten<Robot> forget{mine};
+  contextros::activate_for(mine, "Indoor");
+  EXPECT_EQ(mine.clean("hall"), "wipe+vacuum hall");
+  EXPECT_EQ(other.clean("hall"), "vacuum hall");
+  EXPECT_EQ(mine.getPos().x, 1.0);
+  EXPECT_THROW(other.getPos(), contextros::NoImplementationError);
+  EXPECT_DOUBLE_EQ(speed(), 1.0);  // a free function has no object: decisive layers only
+  EXPECT_EQ(contextros::layers_for(mine), (Names{"Indoor"}));
+  EXPECT_TRUE(contextros::active_layers().empty());
+  std::string seen;
+  std::thread([&] { seen = mine.clean("hall"); }).join();  // in every thread
+  EXPECT_EQ(seen, "wipe+vacuum hall");
+  contextros::reset_for(mine);
+  EXPECT_EQ(mine.clean("hall"), "vacuum hall");
+}
+
+TEST_F(Generated, TheDocumentedOrderDecisiveThenObjectThenScope) {
+  Robot mine, other;
+  Forgotten<Robot> forget_mine{mine}, forget_other{other};
+  contextros::activate("Indoor");
+  contextros::activate_for(mine, "Night");
+  contextros::deactivate_for(other, "Indoor");  // hides a decisive layer for that object
+  EXPECT_EQ(mine.clean("hall"), "quietly wipe+vacuum hall by r1");
+  EXPECT_EQ(other.clean("hall"), "vacuum hall");
+  EXPECT_EQ(contextros::layers_for(mine), (Names{"Indoor", "Night"}));
+  {
+    contextros::ScopedDeactivation quiet_off("Night");  // the scope has the last word
+    EXPECT_EQ(mine.clean("hall"), "wipe+vacuum hall");
+    EXPECT_EQ(contextros::layers_for(mine), (Names{"Indoor"}));
+  }
+  EXPECT_EQ(mine.clean("hall"), "quietly wipe+vacuum hall by r1");
+}
+
+TEST_F(Generated, PerObjectActivationIsValidatedForTheObject) {
+  Robot mine;
+  Forgotten<Robot> forget{mine};
+  try {
+    contextros::activate_for(mine, "Docked");  // requires Indoor
+    FAIL() << "expected RelationError";
+  } catch (const contextros::RelationError& error) {
+    EXPECT_NE(std::string(error.what()).find("requires Indoor"), std::string::npos);
+    EXPECT_NE(std::string(error.what()).find("for this object"), std::string::npos);
+  }
+  EXPECT_TRUE(contextros::layers_for(mine).empty());  // nothing changed
+  EXPECT_EQ(mine.clean("hall"), "vacuum hall");
+}
+
+TEST_F(Generated, ADecisiveSwitchThatConflictsSuspendsTheObjectsLayers) {
+  Robot mine;
+  Forgotten<Robot> forget{mine};
+  contextros::activate_for(mine, "Indoor", "Night");
+  EXPECT_EQ(mine.clean("hall"), "quietly wipe+vacuum hall by r1");
+  // Docked excludes Night: never refused because of an object; mine's level is suspended.
+  ASSERT_EQ(contextros::set_active({"Indoor", "Docked"}).status, contextros::SwitchStatus::applied);
+  EXPECT_THROW(mine.clean("hall"), std::runtime_error);  // docked, as the process
+  EXPECT_EQ(contextros::layers_for(mine), (Names{"Indoor", "Docked"}));
+  EXPECT_THROW(contextros::activate_for(mine, "Outdoor"), contextros::RelationError);
+  contextros::set_active({"Indoor"});  // the conflict is gone: the level applies again
+  EXPECT_EQ(mine.clean("hall"), "quietly wipe+vacuum hall by r1");
+}
+
+TEST_F(Generated, GuardsApplyToPerObjectActivation) {
+  Cleaner mine, other;
+  Forgotten<Cleaner> forget{mine};
+  contextros::activate_for(mine, "GuardBig");
+  EXPECT_EQ(mine.clean(30), "big base 30");
+  EXPECT_EQ(mine.clean(1), "base 1");
+  EXPECT_EQ(other.clean(30), "base 30");
+}
+
 }  // namespace

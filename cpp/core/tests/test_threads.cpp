@@ -204,4 +204,39 @@ TEST_F(Threads, CallsNeverSeeAMixedChain) {
   EXPECT_GT(calls.load(), 0);
 }
 
+// The direct path (no scope anywhere): a call loads only its head's code, and the head's
+// proceed finds its chain later. Switching among configurations that share a head but not
+// the rest, callers must still see the complete chain of one configuration.
+TEST_F(Threads, DirectCallsNeverSeeAMixedChainWhenTheHeadStaysAndTheRestChanges) {
+  const std::vector<Names> configurations = {
+      {"ThrX", "ThrY"}, {"ThrY"}, {"ThrZ", "ThrX", "ThrY"}, {"ThrX", "ThrZ"}, {"ThrY", "ThrX"}};
+  const std::set<std::string> valid = {"Y>X>base", "Y>base", "Y>X>Z>base", "Z>X>base",
+                                       "X>Y>base"};
+  std::atomic<bool> stop{false};
+  std::atomic<long> calls{0};
+  std::vector<std::string> bad;
+  std::mutex bad_mutex;
+  auto caller = [&] {
+    while (!stop.load()) {
+      std::string seen = chain();
+      calls.fetch_add(1);
+      if (valid.count(seen) == 0) {
+        std::lock_guard<std::mutex> lock(bad_mutex);
+        bad.push_back(seen);
+      }
+    }
+  };
+  contextros::set_active(configurations[0]);
+  std::vector<std::thread> callers;
+  callers.emplace_back(caller);
+  callers.emplace_back(caller);
+  while (calls.load() < 1000) std::this_thread::yield();
+  for (int round = 0; round < 20000; ++round) {
+    contextros::set_active(configurations[round % configurations.size()]);
+  }
+  stop.store(true);
+  for (auto& thread : callers) thread.join();
+  EXPECT_TRUE(bad.empty()) << bad.size() << " mixed chains, e.g. " << (bad.empty() ? "" : bad[0]);
+}
+
 }  // namespace

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <memory>
 #include <string>
 #include <string_view>
@@ -76,6 +77,44 @@ class Subscription {
 // Calls `observer` after every applied decisive switch, in epoch order, on the switching
 // thread, while switches are serialised: keep it short. An exception it throws is dropped.
 [[nodiscard]] Subscription subscribe(std::function<void(const SwitchEvent&)> observer);
+
+namespace detail {
+void activate_for(const void* receiver, const std::vector<std::string>& layers);
+void deactivate_for(const void* receiver, const std::vector<std::string>& layers);
+void reset_for(const void* receiver);
+std::vector<std::string> layers_for(const void* receiver);
+}  // namespace detail
+
+// Per-object activation (the Python core's activate_for on an object): `layers` are active
+// for the layered methods called on `object` only, outermost, on top of the decisive
+// configuration (then the calling thread's scopes come on top). Validated for the object
+// first: a relation it would break throws RelationError, nothing changed. A decisive switch
+// that conflicts with an object's own layers is never refused: that object's level is
+// suspended (the decisive configuration wins) until a switch removes the conflict; while
+// it is, changing it throws RelationError (reset_for is allowed). Objects are known by
+// address: call reset_for(*this) in the destructor of an object that may have layers of its
+// own, or a later object at the same address inherits them. Free functions have no object:
+// decisive and scoped layers only.
+template <class T, class... Layers>
+void activate_for(const T& object, const Layers&... layers) {
+  detail::activate_for(std::addressof(object), {std::string(layers)...});
+}
+// `layers` inactive for the methods called on `object` (hides decisive ones for it).
+template <class T, class... Layers>
+void deactivate_for(const T& object, const Layers&... layers) {
+  detail::deactivate_for(std::addressof(object), {std::string(layers)...});
+}
+// Forgets `object`'s own layers: its calls follow the decisive configuration again.
+template <class T>
+void reset_for(const T& object) {
+  detail::reset_for(std::addressof(object));
+}
+// What a method called on `object` from this thread runs: the decisive configuration, the
+// object's own layers (unless suspended), then this thread's scopes.
+template <class T>
+std::vector<std::string> layers_for(const T& object) {
+  return detail::layers_for(std::addressof(object));
+}
 
 // RAII: while any critical section is open (in any thread), decisive switches are deferred;
 // they apply in request order when the last one closes.

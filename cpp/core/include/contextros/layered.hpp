@@ -3,10 +3,11 @@
 // A layered function has a base implementation (or none) and one partial implementation
 // per layer that refines it. For every configuration the runtime composes the chain of
 // implementations once (the most recently activated layer outermost, then the next older
-// one, ..., then the base), caches it for that configuration and installs its head with one
-// atomic store. A call is one atomic load and one indirect call of the head; the chain is
-// immutable and bound at that moment, so a call and all its proceed() calls run the
-// implementations of one configuration, whatever another thread switches meanwhile.
+// one, ..., then the base), caches it for that configuration and installs its head's code
+// with one atomic store. A call is one atomic load and one indirect call of that code, as a
+// plain atomic function pointer; the head's proceed() finds the chain installed with it.
+// Chains are immutable, so a call and all its proceed() calls run the implementations of
+// one configuration, whatever another thread switches meanwhile.
 // Composed chains are never freed before the layered function is (a running call may use
 // them); there is one per distinct configuration seen.
 //
@@ -51,8 +52,10 @@ class LayeredBase {
   const std::string& name() const noexcept { return name_; }
 
   // Called by the runtime, its lock held: install the chain composed for `configuration`
-  // (oldest first), or the scoped entry when `scoped` (threads with scoped activations).
-  virtual void rewire(const std::vector<std::string>& configuration, bool scoped) = 0;
+  // (oldest first), or the scoped entry when `scoped` (threads with scoped activations) or,
+  // for a method, when `receivers` (objects with layers of their own: activate_for).
+  virtual void rewire(const std::vector<std::string>& configuration, bool scoped,
+                      bool receivers) = 0;
 
  protected:
   // Registers with the runtime, which rewires the function at once. The last thing a
@@ -67,16 +70,33 @@ class LayeredBase {
   bool enrolled_ = false;
 };
 
-// The scoped call path (taken while scoped activations exist somewhere in the process):
-// the head of `function`'s chain for the calling thread. A thread without scopes gets
-// `decisive`; one with scopes, the chain composed for its configuration, cached per thread
-// until its scopes or the decisive configuration change (composing takes the runtime lock).
+// The scoped call path (taken while scoped activations, or objects with layers of their
+// own, exist somewhere in the process): the head of `function`'s chain for the calling
+// thread and `receiver` (the object of a method call, null for a free function). Without
+// scopes in this thread and layers of the receiver's own, `decisive`; else the chain
+// composed for that configuration, cached per thread, function and receiver until the
+// configuration changes (composing takes the runtime lock).
 using Compose = const void* (*)(const LayeredBase& function,
                                 const std::vector<std::string>& configuration);
-const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose);
+const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose,
+                        const void* receiver);
 
-[[noreturn]] void throw_no_implementation(const std::string& function);
+[[noreturn]] void throw_no_implementation(const std::string& function, const void* receiver);
 [[noreturn]] void throw_proceed_past_end(const std::string& function, const char* layer);
+
+// The object a method's proceed carries; nothing for a free function (two registers in all).
+template <class Self>
+class ProceedSelf {
+ protected:
+  explicit ProceedSelf(Self* self) noexcept : self_(self) {}
+  Self* self_;
+};
+template <>
+class ProceedSelf<void> {
+ protected:
+  explicit ProceedSelf(void*) noexcept {}
+  static constexpr void* self_ = nullptr;
+};
 
 }  // namespace detail
 
@@ -106,46 +126,78 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   };
 
   // The next implementation of the running chain, and the object of a method.
-  class Proceed {
+  class Proceed : detail::ProceedSelf<Self> {
    public:
     R operator()(Args... args) const {
-      const Node* next = node_->next;
-      return next->fn(Proceed(next, self_), std::forward<Args>(args)...);
+      // The head of a call knows the implementation it is, not its chain: the chain the
+      // runtime installed with it at its head (see invoke()).
+      const Node* node = head_ ? node_->owner->chain_headed_by(head_) : node_;
+      const Node* next = node->next;
+      return next->fn(Proceed(next, nullptr, this->self_), std::forward<Args>(args)...);
     }
     // The object a layered method runs on.
-    std::add_lvalue_reference_t<Self> self() const noexcept { return *self_; }
+    std::add_lvalue_reference_t<Self> self() const noexcept { return *this->self_; }
 
    private:
     friend class Layered;
-    Proceed(const Node* node, Self* self) noexcept : node_(node), self_(self) {}
-    const Node* node_;
-    Self* self_;
+    Proceed(const Node* node, Impl head, Self* self) noexcept
+        : detail::ProceedSelf<Self>(self), node_(node), head_(head) {}
+    const Node* node_;  // the running implementation's link; the entry for the head of a call
+    Impl head_;         // for the head of a call: the implementation called; else null
   };
 
   // `base` may be null (no base: a call with no active partial throws
   // NoImplementationError). One partial per layer.
   Layered(std::string name, Impl base, std::initializer_list<Partial> partials)
-      : detail::LayeredBase(std::move(name)), base_(base), partials_(partials) {
-    scoped_entry_ = Node{&Layered::scoped_entry, nullptr, this, ""};
+      : detail::LayeredBase(std::move(name)),
+        base_(base),
+        partials_(partials),
+        latest_(std::make_unique<std::atomic<const Node*>[]>(partials_.size() + 1)) {
+    entry_ = Node{nullptr, nullptr, this, ""};
+    for (std::size_t i = 0; i <= partials_.size(); ++i) latest_[i].store(nullptr);
     enroll();
   }
   ~Layered() override { unenroll(); }
   Layered(const Layered&) = delete;
   Layered& operator=(const Layered&) = delete;
 
-  // The call: one atomic load and one indirect call.
+  // The call: one atomic load (the head's code) and one indirect call, as a plain atomic
+  // function pointer. The head's proceed finds its chain only when it is called.
   R invoke(Self* self, Args... args) const {
-    const Node* head = head_.load(std::memory_order_acquire);
-    return head->fn(Proceed(head, self), std::forward<Args>(args)...);
+    const Impl head = head_.load(std::memory_order_acquire);
+    return head(Proceed(&entry_, head, self), std::forward<Args>(args)...);
   }
 
-  void rewire(const std::vector<std::string>& configuration, bool scoped) override {
+  void rewire(const std::vector<std::string>& configuration, bool scoped,
+              bool receivers) override {
     const Node* chain = compose(configuration);
+    const std::size_t index = index_of(chain->fn);
+    // Before the head is published: a call that loads the head finds its chain.
+    if (index <= partials_.size()) latest_[index].store(chain, std::memory_order_release);
     decisive_.store(chain, std::memory_order_release);
-    head_.store(scoped ? &scoped_entry_ : chain, std::memory_order_release);
+    const bool slow = scoped || (receivers && !std::is_void_v<Self>);
+    head_.store(slow ? &Layered::scoped_entry : chain->fn, std::memory_order_release);
   }
 
  private:
+  // The chain whose head is `head`: the decisive one, or, when a switch came between the
+  // call's load of its head and its proceed, the chain last installed with that head (a
+  // configuration active during the call: a call never runs a mix of two).
+  const Node* chain_headed_by(Impl head) const {
+    const Node* decisive = decisive_.load(std::memory_order_acquire);
+    if (decisive->fn == head) return decisive;
+    return latest_[index_of(head)].load(std::memory_order_acquire);
+  }
+
+  // The position of `impl` among the partials (then the base); past them for the runtime's
+  // own entries.
+  std::size_t index_of(Impl impl) const {
+    for (std::size_t i = 0; i < partials_.size(); ++i) {
+      if (partials_[i].impl == impl) return i;
+    }
+    return impl == base_ && base_ ? partials_.size() : partials_.size() + 1;
+  }
+
   // The chain for `configuration` (oldest first), composed once and cached. Runtime lock held.
   const Node* compose(const std::vector<std::string>& configuration) const {
     std::vector<std::size_t> refining;
@@ -174,12 +226,14 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     return head;
   }
 
-  // Installed while scoped activations exist: finds the calling thread's chain.
+  // Installed while scoped activations or objects with layers of their own exist: finds
+  // the chain for the calling thread and the call's object.
   static R scoped_entry(Proceed proceed, Args... args) {
     const Layered* self = proceed.node_->owner;
     const Node* head = static_cast<const Node*>(detail::scoped_head(
-        *self, self->decisive_.load(std::memory_order_acquire), &Layered::compose_for));
-    return head->fn(Proceed(head, proceed.self_), std::forward<Args>(args)...);
+        *self, self->decisive_.load(std::memory_order_acquire), &Layered::compose_for,
+        proceed.self_));
+    return head->fn(Proceed(head, nullptr, proceed.self_), std::forward<Args>(args)...);
   }
 
   static const void* compose_for(const detail::LayeredBase& function,
@@ -188,7 +242,7 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   }
 
   static R no_implementation(Proceed proceed, Args...) {
-    detail::throw_no_implementation(proceed.node_->owner->name());
+    detail::throw_no_implementation(proceed.node_->owner->name(), proceed.self_);
   }
 
   static R past_end(Proceed proceed, Args...) {
@@ -197,9 +251,11 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
 
   Impl base_;
   std::vector<Partial> partials_;
-  Node scoped_entry_{};
-  std::atomic<const Node*> head_{nullptr};
+  Node entry_{};  // what the head of a call gets as its node: the owner
+  std::atomic<Impl> head_{nullptr};
   std::atomic<const Node*> decisive_{nullptr};
+  // Per partial (then the base): the chain last installed with it at its head.
+  std::unique_ptr<std::atomic<const Node*>[]> latest_;
   // Every chain ever composed, by the refining partials (newest first). Never shrinks.
   mutable std::map<std::vector<std::size_t>, std::unique_ptr<Node[]>> chains_;
 };
