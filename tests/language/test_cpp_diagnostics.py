@@ -76,6 +76,15 @@ BROKEN = {
         "Layer A [\ntemplate <class T> T f(T x) { return x; }\n]\n",
         2,
         1,
+        "a template cannot be layered (its dispatch would need one layered function per "
+        "instantiation) in layer A: write a plain function per type you need (name_int, "
+        "name_double), layer those, and have the template in the header part call them",
+    ),
+    "method template": (
+        "struct R {\n  template <class T> int g(T x);\n};\nLayer A [\n"
+        "template <class T> int R::g(T x) { return 1; }\n]\n",
+        5,
+        1,
         "a template cannot be layered",
     ),
     "code after the declarations": ("Layer A [\n" + OK + "]\nint y;\n", 4, 1, "found 'int'"),
@@ -146,6 +155,49 @@ BROKEN = {
         2,
         1,
         "a layer's description is an ordinary string literal",
+    ),
+    # Overloads, templates and ref-qualified methods: refused, saying what to write instead.
+    "overload of a base function": (
+        "base [\nint f(int x) { return x; }\n]\nLayer A [\ndouble f(double x) { return x; }\n]\n",
+        5,
+        8,
+        "C++ overloads cannot be layered: give this overload its own name (f_double) and layer "
+        "it, and overload f in the header part to call it",
+    ),
+    "overloads in one layer": (
+        "Layer A [\nint f(int x) { return x; }\nint f(const char* s) { return 1; }\n]\n",
+        3,
+        5,
+        "f is already defined in layer 'A' at line 2; C++ overloads cannot be layered: "
+        "give this overload its own name (f_const_char)",
+    ),
+    "overloaded in the header part": (
+        "int speed(int);\ndouble speed(double);\nLayer A [\nint speed(int x) { return x; }\n]\n",
+        4,
+        5,
+        "cannot layer speed: the header part declares 2 overloads of it (lines 1, 2), and a "
+        "layered function is found by its name; give the one to layer its own name "
+        "(speed_layered), layer that, and have the overload call it",
+    ),
+    "overloaded method": (
+        "struct R {\n  int g(int);\n  int g(double);\n};\nLayer A [\n"
+        "int R::g(int x) { return x; }\n]\n",
+        6,
+        8,
+        "cannot layer R::g: class R declares 2 overloads of it (lines 2, 3)",
+    ),
+    "ref-qualified method": (
+        "struct R {\n  int g() &&;\n};\nLayer A [\nint R::g() && { return 1; }\n]\n",
+        5,
+        12,
+        "a ref-qualified method ('&&') cannot be layered: its dispatch is a plain method; drop "
+        "the qualifier, or layer a plain method (name_layered) and call it from this one",
+    ),
+    "lvalue ref-qualified method": (
+        "struct R {\n  int g() const &;\n};\nLayer A [\nint R::g() const & { return 1; }\n]\n",
+        5,
+        18,
+        "a ref-qualified method ('&') cannot be layered",
     ),
     "unknown class": (
         "Layer A [\nint Robot::f() { return 1; }\n]\n",

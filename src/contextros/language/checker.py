@@ -300,7 +300,8 @@ class _Checker:
                 if earlier is not None:
                     self.sink.error(
                         f"{function.key} is already defined in {block_name} "
-                        f"at line {earlier.at.line}",
+                        f"at line {earlier.at.line}"
+                        + _overload_hint(earlier, function, self.file.language),
                         function.at.line,
                         function.at.col,
                     )
@@ -412,7 +413,8 @@ class _Checker:
         elif first.signature.shape != other.signature.shape:
             self.sink.error(
                 f"incompatible signature: {other.signature.text} does not match "
-                f"{first.signature.text} in {where} (line {first.at.line})",
+                f"{first.signature.text} in {where} (line {first.at.line})"
+                + _overload_hint(first, other, self.file.language),
                 other.at.line,
                 other.at.col,
             )
@@ -641,3 +643,19 @@ def _shown(value: ParameterValue, kind: str) -> str:
     if isinstance(value, str) and kind == "parameter":
         return repr(value)
     return str(value)
+
+
+def _overload_hint(first: Function, other: Function, language: str) -> str:
+    """What to write instead when two C++ implementations differ in their parameter types:
+    overloads, which cannot be layered (the dispatch is found by name)."""
+    if language != "cpp" or first.signature.shape[1] == other.signature.shape[1]:
+        return ""
+    return (
+        f"; C++ overloads cannot be layered: give this overload its own name "
+        f"({other.name}_{'_'.join(_type_word(t) for t in other.signature.shape[1]) or 'void'}) "
+        f"and layer it, and overload {other.name} in the header part to call it"
+    )
+
+
+def _type_word(type_text: object) -> str:
+    return "".join(c if c.isalnum() else "_" for c in str(type_text).split("::")[-1]).strip("_")

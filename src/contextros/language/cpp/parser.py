@@ -208,12 +208,15 @@ class CppClass:
     # The signature (shape, text, line) of each member function declared once.
     declarations: dict[str, tuple[tuple[object, ...], str, int]] = field(default_factory=dict)
     static_methods: frozenset[str] = frozenset()  # declared `static`: a layer cannot refine them
+    overloads: dict[str, tuple[int, ...]] = field(default_factory=dict)  # name: its lines
 
 
 @dataclass
 class CppLayerFile(LayerFile):
     classes: list[CppClass] = field(default_factory=list)
     header_functions: frozenset[str] = frozenset()  # functions the header part declares
+    # Functions the header part declares more than once with different parameters: lines.
+    header_overloads: dict[str, tuple[int, ...]] = field(default_factory=dict)
     header_end: int = 0  # character offset where the declarations start
     namespaces: frozenset[str] = frozenset()  # namespaces the header part opens (ns, ns::inner)
 
@@ -301,11 +304,14 @@ class _Parser:
         """
         seen: set[str] = set()
         for function in sorted(result.all_functions(), key=lambda f: (f.at.line, f.at.col)):
-            if not isinstance(function, CppFunction) or function.owner is None:
-                continue
-            if function.key in seen:
+            if not isinstance(function, CppFunction) or function.key in seen:
                 continue
             seen.add(function.key)
+            if function.owner is None:
+                lines = result.header_overloads.get(function.name)
+                if lines:
+                    self._overloaded(function, "the header part", lines)
+                continue
             cls = result.class_named(function.owner)
             if cls is None and result.is_namespace(function.owner):
                 self.sink.error(
@@ -315,6 +321,9 @@ class _Parser:
                     function.at.line,
                     function.at.col,
                 )
+                continue
+            if cls is not None and function.name in cls.overloads:
+                self._overloaded(function, f"class {function.owner}", cls.overloads[function.name])
                 continue
             if cls is not None and function.name in cls.static_methods:
                 self.sink.error(
@@ -333,6 +342,16 @@ class _Parser:
                 function.at.line,
                 function.at.col,
             )
+
+    def _overloaded(self, function: CppFunction, where: str, lines: tuple[int, ...]) -> None:
+        listed = ", ".join(str(line) for line in lines)
+        self.sink.error(
+            f"cannot layer {function.key}: {where} declares {len(lines)} overloads of it (lines "
+            f"{listed}), and a layered function is found by its name; give the one to layer its "
+            f"own name ({function.name}_layered), layer that, and have the overload call it",
+            function.at.line,
+            function.at.col,
+        )
 
     def _parameter_names(self, result: CppLayerFile) -> None:
         """The dispatch function forwards its arguments: it needs every parameter named."""
@@ -435,6 +454,7 @@ class _Parser:
         tree = self.text.parse(0, result.header_end)
         names: set[str] = set()
         functions: set[str] = set()
+        declared: dict[str, dict[tuple[str, ...], int]] = {}  # name: parameter types: line
         namespaces: set[str] = set()
         opaque = False
         pending: list[tuple[tree_sitter.Node, str]] = [(tree.root_node, "")]
@@ -476,8 +496,12 @@ class _Parser:
                         declarator = child.children[index]
                         if declarator.type == "function_declarator":
                             target = declarator.child_by_field_name("declarator")
-                            if target is not None:
+                            parameters = declarator.child_by_field_name("parameters")
+                            if target is not None and parameters is not None:
                                 functions.add(self.text.text(target))
+                                types = tuple(self._parameters(parameters)[0])
+                                line = self.text.position(self.text.span(child)[0])[0]
+                                declared.setdefault(self.text.text(target), {})[types] = line
                         elif declarator.type in ("identifier", "type_identifier"):
                             names.add(self.text.text(declarator))
                         elif declarator.type == "init_declarator":
@@ -490,6 +514,11 @@ class _Parser:
                         names.add(self.text.text(named))
         result.header_names = frozenset(names)
         result.header_functions = frozenset(functions)
+        result.header_overloads = {
+            name: tuple(sorted(lines.values()))
+            for name, lines in declared.items()
+            if len(lines) > 1
+        }
         result.header_opaque = opaque
         result.namespaces = frozenset(namespaces)
 
@@ -529,6 +558,11 @@ class _Parser:
             ):
                 static_methods.add(method)
         close = self.text.char(body.children[-1].start_byte)
+        overloads = {
+            method: tuple(d[2] for d in found)
+            for method, found in methods.items()
+            if len({d[0][1] for d in found}) > 1
+        }
         result.classes.append(
             CppClass(
                 f"{scope}{self.text.text(name)}",
@@ -537,6 +571,7 @@ class _Parser:
                 frozenset(methods),
                 {m: d[0] for m, d in methods.items() if len(d) == 1},
                 frozenset(static_methods),
+                overloads,
             )
         )
 
@@ -880,7 +915,10 @@ class _Parser:
                 problem = first_problem(child) if child.type != "ERROR" else child
                 if what:
                     self.error(
-                        f"{what} cannot be layered: expected a function definition in {owner_text}",
+                        f"{what} cannot be layered (its dispatch would need one layered "
+                        f"function per instantiation) in {owner_text}: write a plain function "
+                        "per type you need (name_int, name_double), layer those, and have the "
+                        "template in the header part call them",
                         start,
                     )
                 elif problem is not None and problem is not child:
@@ -928,6 +966,15 @@ class _Parser:
         problem = first_problem(node)
         if problem is not None:
             self._syntax_error(problem)
+            return None
+        ref = _ref_qualifier(node.child_by_field_name("declarator"))
+        if ref is not None:
+            self.error(
+                f"a ref-qualified method ('{self.text.text(ref)}') cannot be layered: its dispatch "
+                "is a plain method; drop the qualifier, or layer a plain method "
+                "(name_layered) and call it from this one in the class",
+                self.text.span(ref)[0],
+            )
             return None
         for child in node.children:
             if child.type in ("storage_class_specifier", "virtual", "explicit"):
@@ -1112,6 +1159,14 @@ def _function_declarator(node: tree_sitter.Node | None) -> tree_sitter.Node | No
             inner = named[0] if named else None
         node = inner
     return node if node is not None and node.type == "function_declarator" else None
+
+
+def _ref_qualifier(node: tree_sitter.Node | None) -> tree_sitter.Node | None:
+    """The `&` or `&&` after a method's parameters, if any."""
+    declarator = _function_declarator(node)
+    if declarator is None:
+        return None
+    return next((c for c in declarator.children if c.type == "ref_qualifier"), None)
 
 
 def _declared_name(node: tree_sitter.Node) -> tree_sitter.Node | None:
