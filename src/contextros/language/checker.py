@@ -650,9 +650,11 @@ def _overload_hint(first: Function, other: Function, language: str) -> str:
     overloads, which cannot be layered (the dispatch is found by name)."""
     if language != "cpp" or first.signature.shape[1] == other.signature.shape[1]:
         return ""
+    types = other.signature.shape[1]
+    words = "_".join(_type_word(t) for t in types) if isinstance(types, tuple) else ""
     return (
         f"; C++ overloads cannot be layered: give this overload its own name "
-        f"({other.name}_{'_'.join(_type_word(t) for t in other.signature.shape[1]) or 'void'}) "
+        f"({other.name}_{words or 'void'}) "
         f"and layer it, and overload {other.name} in the header part to call it"
     )
 
