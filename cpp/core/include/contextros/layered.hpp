@@ -129,11 +129,8 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   class Proceed : detail::ProceedSelf<Self> {
    public:
     R operator()(Args... args) const {
-      // The head of a call knows the implementation it is, not its chain: the chain the
-      // runtime installed with it at its head (see invoke()).
-      const Node* node = head_ ? node_->owner->chain_headed_by(head_) : node_;
-      const Node* next = node->next;
-      return next->fn(Proceed(next, nullptr, this->self_), std::forward<Args>(args)...);
+      const Node* next = node_->next;
+      return next->fn(Proceed(next, head_, this->self_), std::forward<Args>(args)...);
     }
     // The object a layered method runs on.
     std::add_lvalue_reference_t<Self> self() const noexcept { return *this->self_; }
@@ -143,7 +140,7 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     Proceed(const Node* node, Impl head, Self* self) noexcept
         : detail::ProceedSelf<Self>(self), node_(node), head_(head) {}
     const Node* node_;  // the running implementation's link; the entry for the head of a call
-    Impl head_;         // for the head of a call: the implementation called; else null
+    Impl head_;         // the head of the call (what the entry's proceed needs)
   };
 
   // `base` may be null (no base: a call with no active partial throws
@@ -153,7 +150,6 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
         base_(base),
         partials_(partials),
         latest_(std::make_unique<std::atomic<const Node*>[]>(partials_.size() + 1)) {
-    entry_ = Node{nullptr, nullptr, this, ""};
     for (std::size_t i = 0; i <= partials_.size(); ++i) latest_[i].store(nullptr);
     enroll();
   }
@@ -162,7 +158,8 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   Layered& operator=(const Layered&) = delete;
 
   // The call: one atomic load (the head's code) and one indirect call, as a plain atomic
-  // function pointer. The head's proceed finds its chain only when it is called.
+  // function pointer. The head gets the entry as its link: its proceed goes through
+  // head_proceed, which finds the chain installed with that head.
   R invoke(Self* self, Args... args) const {
     const Impl head = head_.load(std::memory_order_acquire);
     return head(Proceed(&entry_, head, self), std::forward<Args>(args)...);
@@ -180,12 +177,19 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   }
 
  private:
-  // The chain whose head is `head`: the decisive one, or, when a switch came between the
-  // call's load of its head and its proceed, the chain last installed with that head (a
-  // configuration active during the call: a call never runs a mix of two).
-  const Node* chain_headed_by(Impl head) const {
-    const Node* decisive = decisive_.load(std::memory_order_acquire);
-    if (decisive->fn == head) return decisive;
+  // The proceed of the head of a call: the decisive chain's rest, or, when a switch came
+  // between the call's load of its head and this proceed, the rest of the chain installed
+  // last with that head (a configuration active during the call: never a mix of two).
+  static R head_proceed(Proceed proceed, Args... args) {
+    const Layered* self = proceed.node_->owner;
+    const Node* chain = self->decisive_.load(std::memory_order_acquire);
+    if (chain->fn != proceed.head_) chain = self->latest(proceed.head_);
+    const Node* next = chain->next;
+    return next->fn(Proceed(next, proceed.head_, proceed.self_), std::forward<Args>(args)...);
+  }
+
+  // The chain installed last with `head` at its head.
+  const Node* latest(Impl head) const {
     return latest_[index_of(head)].load(std::memory_order_acquire);
   }
 
@@ -233,7 +237,7 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     const Node* head = static_cast<const Node*>(detail::scoped_head(
         *self, self->decisive_.load(std::memory_order_acquire), &Layered::compose_for,
         proceed.self_));
-    return head->fn(Proceed(head, nullptr, proceed.self_), std::forward<Args>(args)...);
+    return head->fn(Proceed(head, head->fn, proceed.self_), std::forward<Args>(args)...);
   }
 
   static const void* compose_for(const detail::LayeredBase& function,
@@ -251,10 +255,12 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
 
   Impl base_;
   std::vector<Partial> partials_;
-  Node entry_{};  // what the head of a call gets as its node: the owner
+  // What the head of a call gets as its link: its next is head_proceed.
+  Node after_head_{&Layered::head_proceed, nullptr, this, ""};
+  Node entry_{nullptr, &after_head_, this, ""};
   std::atomic<Impl> head_{nullptr};
   std::atomic<const Node*> decisive_{nullptr};
-  // Per partial (then the base): the chain last installed with it at its head.
+  // Per partial (then the base): the chain installed last with it at its head.
   std::unique_ptr<std::atomic<const Node*>[]> latest_;
   // Every chain ever composed, by the refining partials (newest first). Never shrinks.
   mutable std::map<std::vector<std::size_t>, std::unique_ptr<Node[]>> chains_;
