@@ -5,7 +5,7 @@ configuration) against a plain out-of-line call and against the paper's Listing 
 the floor of any dispatch rewired at run time (an atomic function pointer) and the layered
 call as it was before issue 18 (two dependent loads), all in the same rounds. Same
 workload as the Python table: `x + 1`, each partial adding its own `+ 1`; each call depends
-on the previous result. Built by cmake (`-O2`), run by `cpp/core/benchmarks/
+on the previous result. Built by cmake (`-O2`, functions 64-byte aligned), run by `cpp/core/benchmarks/
 dispatch_benchmark.cpp`, calling each function directly as a program does: all cases in the
 same short interleaved rounds (101 x 200,000 calls), eight runs at different stack offsets.
 ns per call and "x plain" come from the fastest rounds, as in the other tables; the median
@@ -184,10 +184,10 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
-def splice(section: str, path: Path = DOCS / "benchmarks.md") -> None:
+def splice(section: str, path: Path = DOCS / "benchmarks.md", title: str = TITLE) -> None:
     """Put this section into docs/benchmarks.md in place of its previous version."""
     text = path.read_text() if path.exists() else "# Benchmarks\n"
-    heading = f"## {TITLE}"
+    heading = f"## {title}"
     start = text.find(heading)
     block = f"{heading}\n\n{section}\n\n"
     if start < 0:

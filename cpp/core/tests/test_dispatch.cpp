@@ -62,6 +62,19 @@ TEST_F(Dispatch, NoBaseNoLayerIsNoImplementation) {
   EXPECT_EQ(pos(), 11);
 }
 
+// proceed is a value: a helper the partial hands it to runs the next implementation.
+using Helped = contextros::ProceedOf<std::string(const std::string&)>;
+std::string helped_base(Helped, const std::string& arg) { return "base(" + arg + ")"; }
+std::string helper(const Helped& proceed, const std::string& arg) { return "h>" + proceed(arg); }
+std::string helped_A(Helped proceed, const std::string& arg) { return helper(proceed, arg); }
+contextros::LayeredOf<std::string(const std::string&)> helped_layered{
+    "helped", &helped_base, {{"DispA", &helped_A}}};
+
+TEST_F(Dispatch, ProceedHandedToAHelperRunsTheNextImplementation) {
+  contextros::activate("DispA");
+  EXPECT_EQ(helped_layered.invoke(nullptr, "x"), "h>base(x)");
+}
+
 TEST_F(Dispatch, ProceedPastTheLastImplementationThrows) {
   contextros::activate("DispB");
   try {

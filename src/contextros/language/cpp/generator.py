@@ -340,6 +340,7 @@ class _Emitter:
         line, col = self.position(hook.body_start)
         body = _unix(self.source[hook.body_start : hook.body_end])
         return (
+            f"// The 'on {hook.event}' hook of layer {hook.layer}.\n"
             f"{self.line(hook.at.line)}\nvoid {hook.generated_name}()\n"
             f"{self.line(line)}\n{' ' * (col - 1)}{body}\n{_RESET}\n\n"
         )
