@@ -5,8 +5,9 @@ configuration) against a plain out-of-line call and against the paper's Listing 
 the floor of any dispatch rewired at run time (an atomic function pointer) and the layered
 call as it was before issue 18 (two dependent loads), all in the same rounds. Same
 workload as the Python table: `x + 1`, each partial adding its own `+ 1`; each call depends
-on the previous result. Built by cmake (`-O2`, functions 64-byte aligned), run by `cpp/core/benchmarks/
-dispatch_benchmark.cpp`, calling each function directly as a program does: all cases in the
+on the previous result. Built by cmake (`-O2`, functions 64-byte aligned), run by
+`cpp/core/benchmarks/dispatch_benchmark.cpp`, calling each function directly as a program
+does: all cases in the
 same short interleaved rounds (101 x 200,000 calls), eight runs at different stack offsets.
 ns per call and "x plain" come from the fastest rounds, as in the other tables; the median
 column is the typical round's ratio to the plain call measured next to it (median over the
