@@ -12,6 +12,7 @@ import pytest
 
 from contextros.cli import main
 from contextros.language.cpp.generator import compile_cpp
+from contextros.language.cpp.parser import parse_with_diagnostics
 from tests.language.conftest import GOLDEN
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -355,3 +356,40 @@ def test_a_method_named_like_a_prefix_of_another_is_declared(tmp_path: Path) -> 
     assert "int get()" in header and "int getPos()" in header
     build = cxx("-std=c++17", "-Werror", "-c", "prefixed.layers.cpp", "-o", "p.o", cwd=tmp_path)
     assert build.returncode == 0, build.stderr
+
+
+EDGES = """#include <string>
+struct R {
+  int n = 3;
+  int g(int x) const noexcept;
+  auto h(int x) -> int;
+};
+base [
+int R::g(int x) const noexcept { return x; }
+auto R::h(int x) -> int { return x; }
+]
+Layer A [
+"two " "parts"  // a description in pieces, as C++ joins them
+int R::g(int x) const noexcept when (x > n) { return proceed(x) * 10; }
+auto R::h(int x) -> int when (x < 0) { return -proceed(-x); }
+on activate {}
+]
+"""
+
+
+def test_guards_after_qualifiers_and_trailing_return_types_compile(tmp_path: Path) -> None:
+    """`when` after `const noexcept` and after `-> int`; a description of two literals."""
+    parsed, diagnostics = parse_with_diagnostics(EDGES, "edges.cpp.layers")
+    assert [d.render() for d in diagnostics if d.is_error] == []
+    (layer,) = parsed.layers
+    assert layer.description == "two parts"
+    assert [(f.key, f.guard.text if f.guard else None) for f in layer.functions] == [
+        ("R::g", "x > n"),
+        ("R::h", "x < 0"),
+    ]
+    assert [hook.event for hook in layer.hooks] == ["activate"]
+    (tmp_path / "edges.cpp.layers").write_text(EDGES)
+    source = tmp_path / "edges.layers.cpp"
+    assert main(["compile", str(tmp_path / "edges.cpp.layers"), "-o", str(source)]) == 0
+    result = cxx("-std=c++17", "-Werror", "-fsyntax-only", source.name, cwd=tmp_path)
+    assert result.returncode == 0, result.stderr

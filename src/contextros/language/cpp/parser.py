@@ -9,6 +9,7 @@ carrying the text spans the back end rewrites.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 
 import tree_sitter
@@ -748,7 +749,7 @@ class _Parser:
                     declarator = declarator and text != "}"
                 k += 1
                 continue
-            if token.kind in ("string_literal", "raw_string_literal") and item_start:
+            if token.kind in _STRINGS and item_start:
                 k = self._description(block, k, end, layer, where, items)
                 continue
             if text == "on" and item_start and k + 1 < end and block[k + 1].text.isidentifier():
@@ -775,8 +776,11 @@ class _Parser:
     ) -> int:
         start = k
         parts: list[str] = []
-        while k < end and block[k].kind in ("string_literal", "raw_string_literal"):
-            parts.append(block[k].text)
+        while k < end and block[k].kind in _STRINGS:
+            text = block[k].text
+            pieces = _LITERAL.findall(text)  # "a" "b" may come as one token
+            rest = _LITERAL.sub("", text).strip()
+            parts.extend(pieces if pieces and not rest else [text])
             k += 1
         stop = block[k - 1].end
         if k < end and block[k].text == ";":
@@ -1199,6 +1203,8 @@ def _calls(node: tree_sitter.Node) -> list[tree_sitter.Node]:
     return found
 
 
+_STRINGS = ("string_literal", "raw_string_literal", "concatenated_string")
+_LITERAL = re.compile(r'"(?:[^"\\\n]|\\.)*"')
 _ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "0": "\0"}
 
 

@@ -23,7 +23,6 @@ OPAQUE = frozenset(
         "raw_string_literal",
         "char_literal",
         "system_lib_string",
-        "concatenated_string",
     }
 )
 
