@@ -9,7 +9,6 @@ carrying the text spans the back end rewrites.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass, field
 
 import tree_sitter
@@ -776,11 +775,8 @@ class _Parser:
     ) -> int:
         start = k
         parts: list[str] = []
-        while k < end and block[k].kind in _STRINGS:
-            text = block[k].text
-            pieces = _LITERAL.findall(text)  # "a" "b" may come as one token
-            rest = _LITERAL.sub("", text).strip()
-            parts.extend(pieces if pieces and not rest else [text])
+        while k < end and block[k].kind in _STRINGS:  # "a" "b": joined, as C++ does
+            parts.append(block[k].text)
             k += 1
         stop = block[k - 1].end
         if k < end and block[k].text == ";":
@@ -793,7 +789,7 @@ class _Parser:
                 block[start].start,
             )
             return k
-        text: list[str] = []
+        values: list[str] = []
         for part in parts:
             if not (part.startswith('"') and part.endswith('"') and len(part) >= 2):
                 self.error(
@@ -802,8 +798,8 @@ class _Parser:
                     block[start].start,
                 )
                 return k
-            text.append(_unescape(part[1:-1]))
-        layer.description = "".join(text)
+            values.append(_unescape(part[1:-1]))
+        layer.description = "".join(values)
         return k
 
     def _hook(
@@ -1203,8 +1199,7 @@ def _calls(node: tree_sitter.Node) -> list[tree_sitter.Node]:
     return found
 
 
-_STRINGS = ("string_literal", "raw_string_literal", "concatenated_string")
-_LITERAL = re.compile(r'"(?:[^"\\\n]|\\.)*"')
+_STRINGS = ("string_literal", "raw_string_literal")
 _ESCAPES = {"n": "\n", "t": "\t", "r": "\r", "\\": "\\", '"': '"', "'": "'", "0": "\0"}
 
 
