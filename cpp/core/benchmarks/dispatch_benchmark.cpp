@@ -31,8 +31,14 @@ struct Case {
   Timer time;
   double best;
   std::vector<double> ratios;
-  bool scoped = false;  // the layers by a ScopedActivation of the timing thread instead
+  // How the layers are active: decisively, by a ScopedActivation of the timing thread, for
+  // the called object only (activate_for), or decisively while another object has its own.
+  enum class Mode { decisive, scoped, object, other_object } mode = Mode::decisive;
 };
+
+BenchCounter counter, other_counter;
+// A method call, through a plain function as the other cases are.
+int method_call(int x) { return counter.add(x); }
 
 
 // A loop calling F directly, as a program calls a function (no call through a pointer).
@@ -75,7 +81,13 @@ int main(int argc, char** argv) {
        &time_loop<&baseline::two_loads_call>, {}, {}},
       {"layered: one partial, proceeds", one, &time_loop<&step>, {}, {}},
       {"layered: three partials, proceed", three, &time_loop<&step>, {}, {}},
-      {"layered: one partial, no proceed, scoped (ScopedActivation)", one, &time_loop<&single>, {}, {}, true},
+      {"layered: one partial, no proceed, scoped (ScopedActivation)", one, &time_loop<&single>,
+       {}, {}, Case::Mode::scoped},
+      {"layered method: one partial, no proceed", one, &time_loop<&method_call>, {}, {}},
+      {"layered method: one partial, for the object (activate_for)", one,
+       &time_loop<&method_call>, {}, {}, Case::Mode::object},
+      {"layered method: one partial, another object with layers of its own", one,
+       &time_loop<&method_call>, {}, {}, Case::Mode::other_object},
       {"if/else (Listing 2): no active layer", none, &time_loop<&baseline::if_else_step>, {}, {}},
       {"if/else (Listing 2): one partial, no proceed", one, &time_loop<&baseline::if_else_single>, {}, {}},
       {"if/else (Listing 2): one partial, proceeds", one, &time_loop<&baseline::if_else_step>, {}, {}},
@@ -85,13 +97,21 @@ int main(int argc, char** argv) {
     std::vector<double> costs;
     for (auto& item : cases) {
       std::optional<contextros::ScopedActivation> scope;
-      if (item.scoped) {
+      if (item.mode == Case::Mode::scoped) {
         configure({});
         scope.emplace(item.layers.front());
+      } else if (item.mode == Case::Mode::object) {
+        configure({});
+        contextros::activate_for(counter, item.layers.front());
       } else {
         configure(item.layers);
+        if (item.mode == Case::Mode::other_object) {
+          contextros::activate_for(other_counter, "BenchL2");
+        }
       }
       const double cost = item.time(iterations);
+      contextros::reset_for(counter);
+      contextros::reset_for(other_counter);
       item.best = round == 0 ? cost : std::min(item.best, cost);
       costs.push_back(cost);
     }
