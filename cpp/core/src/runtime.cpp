@@ -45,6 +45,9 @@ struct ThreadScopes {
   };
   // By function and receiver (null for none); valid for `generation` only.
   std::map<std::pair<const LayeredBase*, const void*>, Cached> heads;
+  // The last of them: a loop calling one function on one object finds it here.
+  std::pair<const LayeredBase*, const void*> last_key{nullptr, nullptr};
+  Cached last{0, nullptr};
 };
 
 thread_local ThreadScopes thread_scopes;
@@ -189,6 +192,7 @@ class Runtime {
       scopes.effective = replay(active, scopes.steps, definitions());
       scopes.generation = now;
       scopes.heads.clear();
+      scopes.last = {0, nullptr};
     }
     return scopes.effective;
   }
@@ -269,8 +273,11 @@ const void* scoped_head(const LayeredBase& function, const void* decisive, Compo
   const std::uint64_t generation = runtime.generation.load(std::memory_order_acquire);
   const auto key = std::make_pair(&function, receiver);
   if (scopes.generation == generation) {
+    if (scopes.last_key == key && scopes.last.generation == generation) return scopes.last.head;
     auto cached = scopes.heads.find(key);
     if (cached != scopes.heads.end() && cached->second.generation == generation) {
+      scopes.last_key = key;
+      scopes.last = cached->second;
       return cached->second.head;
     }
   }
@@ -278,6 +285,8 @@ const void* scoped_head(const LayeredBase& function, const void* decisive, Compo
   runtime.effective(scopes);  // brings the thread's cache to the current generation
   const void* head = compose(function, runtime.effective_for(scopes, receiver));
   scopes.heads[key] = {scopes.generation, head};
+  scopes.last_key = key;
+  scopes.last = {scopes.generation, head};
   return head;
 }
 

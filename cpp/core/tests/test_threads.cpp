@@ -105,6 +105,16 @@ TEST_F(Threads, AScopedThreadSeesEveryDecisiveSwitchAtItsNextCall) {
   EXPECT_EQ(after, "Y>X>base");
 }
 
+// The thread's cache of the last head it used must not outlive a change of its scopes,
+// whoever refreshes the thread's configuration first.
+TEST_F(Threads, ANewScopeIsSeenAfterTheThreadsLayersWereAskedFor) {
+  contextros::ScopedActivation x("ThrX");
+  EXPECT_EQ(chain(), "X>base");
+  contextros::ScopedActivation y("ThrY");
+  EXPECT_EQ(contextros::effective_layers(), (Names{"ThrX", "ThrY"}));
+  EXPECT_EQ(chain(), "Y>X>base");
+}
+
 TEST_F(Threads, ScopedActivationChecksRelations) {
   contextros::define_layer({"ThrLonely", {"ThrX"}, {}, {}, ""});
   contextros::activate("ThrX");
