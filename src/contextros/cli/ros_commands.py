@@ -408,6 +408,43 @@ def _registry_as_dict(registry: Any) -> dict[str, Any]:
         "dropped": list(registry.dropped),
         "recovering": registry.recovering,
         "declared_order": _declared_order(registry),
+        "rules": [
+            {
+                "name": rule.name,
+                "where": rule.where,
+                "text": rule.text,
+                "value": rule.value,
+                "settled": rule.settled,
+                "holding": rule.holding,
+                "hold_left": round(rule.hold_left, 3),
+                "hold": rule.hold,
+                "hysteresis": rule.hysteresis,
+                "relaxed": rule.relaxed,
+                "readings": list(rule.readings),
+                "error": rule.error,
+                "last_firing": rule.last_firing,
+                "last_outcome": rule.last_outcome,
+            }
+            for rule in registry.rules
+        ],
+        "bindings": [
+            {
+                "layer": binding.layer,
+                "kind": binding.kind,
+                "node": binding.node,
+                "parameter": binding.parameter,
+                "value": binding.value,
+                "where": binding.where,
+                "ok": binding.ok,
+                "last_result": binding.last_result,
+                "last_time": (
+                    binding.last_time.sec + binding.last_time.nanosec * 1e-9
+                    if binding.last_result
+                    else None
+                ),
+            }
+            for binding in registry.bindings
+        ],
     }
 
 
@@ -482,7 +519,48 @@ def _registry_as_text(registry: Any) -> str:
         ]
     if data["dropped"]:
         parts += ["", f"dropped: {', '.join(data['dropped'])}"]
+    if data["rules"]:
+        parts += [
+            "",
+            _table(["RULE", "VALUE", "IN FORCE", "HOLD", "READS", "LAST"], _rule_rows(data)),
+        ]
+    if data["bindings"]:
+        rows = [
+            [
+                b["layer"],
+                b["node"],
+                f"{b['parameter']} = {b['value']}" if b["kind"] == "parameter" else b["value"],
+                ("ok: " if b["ok"] else "FAILED: ") + b["last_result"] if b["last_result"] else "-",
+            ]
+            for b in data["bindings"]
+        ]
+        parts += ["", _table(["BINDING", "NODE", "SETS", "LAST RESULT"], rows)]
     return "\n".join(parts)
+
+
+def _rule_rows(data: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for rule in data["rules"]:
+        if rule["error"]:
+            hold = f"OFF: {rule['error']}"
+        elif rule["holding"]:
+            hold = f"holding, {rule['hold_left']:.1f} of {rule['hold']:g} s left"
+        elif rule["relaxed"]:
+            hold = f"hysteresis {rule['hysteresis']:g} engaged"
+        else:
+            hold = "armed"
+        last = f"{rule['last_firing']}: {rule['last_outcome']}" if rule["last_firing"] else "-"
+        rows.append(
+            [
+                f"{rule['name']}: {rule['text']}",
+                rule["value"],
+                rule["settled"] or "-",
+                hold,
+                "; ".join(rule["readings"]),
+                last,
+            ]
+        )
+    return rows
 
 
 def run_watch(args: argparse.Namespace) -> int:

@@ -14,6 +14,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from contextros_interfaces.msg import RuleInfo
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -112,6 +113,8 @@ class RuleRunner:
         self._relations = relations
         self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
         self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
+        self._failed_why: dict[str, str] = {}  # topic -> why its rules are off
+        self._last: dict[str, tuple[str, str]] = {}  # rule -> (its last firing, the outcome)
         # Topics bound so far: (field lookup, type name), to check fields compared across topics.
         self._known: dict[str, tuple[Callable[[tuple[str, ...]], FieldKind], str]] = {}
         self._subscriptions: list[Any] = []
@@ -120,6 +123,7 @@ class RuleRunner:
         # until one succeeds or the rule fires anew (docs/rules.md, "refused firings"), or
         # a state no rule caused (an operator's command) is published: that one stands.
         self._refused: dict[str, Firing] = {}
+        self._rules_by_name = {rule.name: rule for rule in rules.rules}
         self._requesters = {f"rule {rule.name}" for rule in rules.rules} | {RECOVERY_REQUESTER}
         self._manual_states = 0  # states published that no rule caused, so far
         self._submitted_at: dict[str, int] = {}  # rule -> _manual_states when it last fired
@@ -148,6 +152,7 @@ class RuleRunner:
         if self._failed.get(topic) != type_name:
             self.node.get_logger().error(f"rules on {topic} stay off: {why}")
             self._failed[topic] = type_name
+            self._failed_why[topic] = why
 
     def _bind(self, topic: str, resolved: str, type_name: str) -> None:
         try:
@@ -163,6 +168,7 @@ class RuleRunner:
         if problems:
             self.errors += problems
             self._failed[topic] = type_name
+            self._failed_why[topic] = "; ".join(problem.message for problem in problems)
             del self._unbound[topic]
             for problem in problems:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
@@ -228,7 +234,40 @@ class RuleRunner:
 
     def _send(self, firing: Firing) -> None:
         self._submitted_at[firing.rule] = self._manual_states
+        self._last[firing.rule] = (_asked(firing), "waiting for the manager")
         self._submit(firing)
+
+    def outcome(self, firing: Firing, text: str) -> None:
+        """What the manager made of `firing` (shown by `status` and the dashboard)."""
+        self._last[firing.rule] = (_asked(firing), text)
+
+    def infos(self) -> list[Any]:
+        """Every rule's value, hold timer, hysteresis state and last firing (RuleInfo)."""
+        infos = []
+        for report in self.engine.report(time.monotonic()):
+            rule = self._rules_by_name[report.name]
+            off = [self._failed_why[ref.topic] for ref in rule.fields if ref.topic in self._failed]
+            error = report.error or (off[0] if off else "")
+            last_firing, last_outcome = self._last.get(report.name, ("", ""))
+            infos.append(
+                RuleInfo(
+                    name=report.name,
+                    where=report.where,
+                    text=report.text,
+                    value="off" if error else report.value_text,
+                    settled="" if report.settled is None else str(report.settled).lower(),
+                    holding=report.holding,
+                    hold_left=report.hold_left,
+                    hold=report.hold,
+                    hysteresis=report.hysteresis,
+                    relaxed=report.relaxed,
+                    readings=[f"{name} = {value}" for name, value in report.readings],
+                    error=error,
+                    last_firing=last_firing,
+                    last_outcome=last_outcome,
+                )
+            )
+        return infos
 
     def _fire(self, firings: list[Firing]) -> None:
         if not firings:
@@ -245,3 +284,9 @@ class RuleRunner:
         for firing in firings:
             self._refused.pop(firing.rule, None)  # superseded by the rule's new value
             self._send(firing)
+
+
+def _asked(firing: Firing) -> str:
+    parts = [f"activate {', '.join(firing.activate)}"] if firing.activate else []
+    parts += [f"deactivate {', '.join(firing.deactivate)}"] if firing.deactivate else []
+    return " and ".join(parts)
