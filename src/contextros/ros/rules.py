@@ -22,6 +22,7 @@ from contextros.language.diagnostics import Diagnostic
 from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
 from contextros.rules import Firing, RuleEngine, RuleSet
+from contextros.rules.firings import FiringQueue
 from contextros.rules.ruleset import FieldKind
 
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
@@ -109,24 +110,22 @@ class RuleRunner:
         self.node = node
         self.rules = rules
         self.engine = RuleEngine(rules)
-        self._submit = submit
-        self._relations = relations
         self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
         self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
         self._failed_why: dict[str, str] = {}  # topic -> why its rules are off
-        self._last: dict[str, tuple[str, str]] = {}  # rule -> (its last firing, the outcome)
         # Topics bound so far: (field lookup, type name), to check fields compared across topics.
         self._known: dict[str, tuple[Callable[[tuple[str, ...]], FieldKind], str]] = {}
         self._subscriptions: list[Any] = []
         self.errors: list[Diagnostic] = []
-        # Firings the manager refused (a relation, say): tried again after each new state
-        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings"), or
-        # a state no rule caused (an operator's command) is published: that one stands.
-        self._refused: dict[str, Firing] = {}
         self._rules_by_name = {rule.name: rule for rule in rules.rules}
-        self._requesters = {f"rule {rule.name}" for rule in rules.rules} | {RECOVERY_REQUESTER}
-        self._manual_states = 0  # states published that no rule caused, so far
-        self._submitted_at: dict[str, int] = {}  # rule -> _manual_states when it last fired
+        # Overridden, refused and retried firings (docs/rules.md, "refused firings").
+        self.firings = FiringQueue(
+            self._rules_by_name,
+            submit,
+            relations,
+            lambda text: node.get_logger().info(text),
+            automatic_requesters=(RECOVERY_REQUESTER,),
+        )
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
             node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
@@ -195,51 +194,23 @@ class RuleRunner:
             for failure in self.engine.failures:
                 self.node.get_logger().error(f"{failure} (a message on {topic})")
             self.engine.failures.clear()
-        self._fire(firings)
+        self.firings.fire(firings)
 
     def tick(self) -> None:
-        self._fire(self.engine.tick(time.monotonic()))
+        self.firings.fire(self.engine.tick(time.monotonic()))
 
     def refused(self, firing: Firing) -> None:
-        """The manager refused `firing`: keep it for the next state (unless newer), unless a
-        manual command set a state since it was submitted (that command stands)."""
-        if self._submitted_at.get(firing.rule, self._manual_states) != self._manual_states:
-            self._dropped(firing)
-            return
-        self._refused.setdefault(firing.rule, firing)
+        self.firings.refused(firing)
 
     def published(self, state: LayerState) -> None:
-        """The manager published `state`. One that no rule and no recovery caused is a manual
-        command: it stands until a rule's condition changes, so the refused firings, older
-        than it, are dropped (docs/rules.md, "manual commands and rules")."""
-        if state.requester in self._requesters:
-            return
-        self._manual_states += 1
-        for firing in self._refused.values():
-            self._dropped(firing)
-        self._refused.clear()
-
-    def _dropped(self, firing: Firing) -> None:
-        self.node.get_logger().info(
-            f"{firing.requester}: its refused firing is dropped, a manual command came after "
-            "it (it acts again when its condition changes)"
-        )
+        self.firings.published(state.requester)
 
     def retry(self) -> None:
-        """A new state: the refused firings may pass now (in file order)."""
-        waiting = sorted(self._refused.values(), key=lambda f: f.priority)
-        self._refused.clear()
-        for firing in waiting:
-            self._send(firing)
-
-    def _send(self, firing: Firing) -> None:
-        self._submitted_at[firing.rule] = self._manual_states
-        self._last[firing.rule] = (_asked(firing), "waiting for the manager")
-        self._submit(firing)
+        self.firings.retry()
 
     def outcome(self, firing: Firing, text: str) -> None:
         """What the manager made of `firing` (shown by `status` and the dashboard)."""
-        self._last[firing.rule] = (_asked(firing), text)
+        self.firings.outcome(firing, text)
 
     def infos(self) -> list[Any]:
         """Every rule's value, hold timer, hysteresis state and last firing (RuleInfo)."""
@@ -248,7 +219,7 @@ class RuleRunner:
             rule = self._rules_by_name[report.name]
             off = [self._failed_why[ref.topic] for ref in rule.fields if ref.topic in self._failed]
             error = report.error or (off[0] if off else "")
-            last_firing, last_outcome = self._last.get(report.name, ("", ""))
+            last_firing, last_outcome = self.firings.last.get(report.name, ("", ""))
             infos.append(
                 RuleInfo(
                     name=report.name,
@@ -268,25 +239,3 @@ class RuleRunner:
                 )
             )
         return infos
-
-    def _fire(self, firings: list[Firing]) -> None:
-        if not firings:
-            return
-        if len(firings) > 1:
-            from contextros.rules import resolve
-
-            firings, overridden = resolve(firings, self._relations())
-            for firing in overridden:
-                self.node.get_logger().warning(
-                    f"{firing.requester} ({firing.reason}) overridden by a rule declared "
-                    "before it (contradicting targets)"
-                )
-        for firing in firings:
-            self._refused.pop(firing.rule, None)  # superseded by the rule's new value
-            self._send(firing)
-
-
-def _asked(firing: Firing) -> str:
-    parts = [f"activate {', '.join(firing.activate)}"] if firing.activate else []
-    parts += [f"deactivate {', '.join(firing.deactivate)}"] if firing.deactivate else []
-    return " and ".join(parts)
