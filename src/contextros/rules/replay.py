@@ -87,7 +87,11 @@ class RuleReplay:
         self._next_tick = start
         self._now = start
         declared = merge_declarations(
-            [*declarations, *(LayerDeclaration(n) for r in rules.rules for n in r.targets())]
+            [
+                *declarations,
+                *(LayerDeclaration(n) for r in rules.rules for n in r.targets()),
+                *(LayerDeclaration(n) for n in active),  # someone implemented them
+            ]
         )
         settings = ManagerSettings(
             manager_id="replay",
