@@ -344,14 +344,13 @@ def _print_replay(
     for note in result.notes:
         print(f"note: {note}", file=sys.stderr)
     print(f"{args.recording}: {end - start:.1f} s replayed through {', '.join(args.rules)}")
-    for switch in result.switches:
-        active = ", ".join(switch.active) or "none"
-        print(f"{switch.time - start:9.3f} s  [{active}]  {switch.requester}: {switch.reason}")
-    for refusal in result.refusals:
-        print(
-            f"{refusal.time - start:9.3f} s  rule {refusal.rule} could not {refusal.asked}: "
-            f"{refusal.message}"
-        )
+    events = [
+        (s.time, f"[{', '.join(s.active) or 'none'}]  {s.requester}: {s.reason}")
+        for s in result.switches
+    ]
+    events += [(r.time, f"rule {r.rule} could not {r.asked}: {r.message}") for r in result.refusals]
+    for at, text in sorted(events, key=lambda event: event[0]):
+        print(f"{at - start:9.3f} s  {text}")
     by_rules = sum(1 for *_, who in recorded if who.startswith("rule "))
     made = sum(1 for s in result.switches if s.requester.startswith("rule "))
     print(f"{made} switches by these rules; the recording has {by_rules} made by the live rules")
