@@ -58,8 +58,12 @@ def main() -> int:
         )
         _screenshot(URL.search(url.text).group(1), IMAGES / "dashboard-rescue.png")
         output, _ = mission.communicate(timeout=90)
-        print(output)
+        print(output[output.index("summary:") :] if "summary:" in output else output)
         launch.stop("record")
+        time.sleep(0.5)  # its last lines
+        while (line := launch.next_line(0.2)) is not None:
+            if line.process == "record" and line.text.startswith("recorded "):
+                print(line.text)
     changed = WORK / "rescue-changed.layers"
     changed.write_text(LAYERS.read_text(encoding="utf-8").replace(*CHANGED), encoding="utf-8")
     for rules, image in ((LAYERS, "replay-rescue.png"), (changed, "replay-rescue-changed.png")):
