@@ -9,9 +9,13 @@ resident memory before and after.
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import re
 import statistics
 import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 from typing import Any
 
 from benchmarks.activation import _wait_for_lines
@@ -39,11 +43,9 @@ OBSERVE = """() => {
 }"""
 
 
-def _heap(page: Any) -> int:
-    return int(page.evaluate("() => { gc(); return performance.memory.usedJSHeapSize; }"))
-
-
-def run() -> list[dict[str, Any]]:
+@contextlib.contextmanager
+def _system() -> Iterator[_Bench]:
+    """A manager, four context nodes, the dashboard, and its page open in Chromium."""
     import rclpy
     from contextros_interfaces.msg import LayerState
     from examples.launch import Launch
@@ -67,58 +69,106 @@ def run() -> list[dict[str, Any]]:
                 url = match.group(1)
         rclpy.init(domain_id=DOMAIN)
         node = Node("bench_dashboard_client")
-        client = LayerClient(node, requester="bench")
-        stamps: dict[int, float] = {}  # epoch -> the state's stamp (seconds)
+        bench = _Bench(LayerClient(node, requester="bench"), node, dashboard.pid)
 
         def on_state(msg: Any) -> None:
-            stamps.setdefault(msg.epoch, stamp_to_seconds(msg.stamp))
+            bench.stamps.setdefault(msg.epoch, stamp_to_seconds(msg.stamp))
 
         node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
         try:
-            client.wait_for_manager(15.0)
-            first = client.query().epoch
+            bench.client.wait_for_manager(15.0)
             time.sleep(1.0)
             with sync_playwright() as playwright:
                 browser = playwright.chromium.launch(
                     executable_path="/usr/bin/chromium", headless=True, args=FLAGS
                 )
-                page = browser.new_page()
-                page.goto(url)
-                page.locator('[data-testid="nodes"]', has_text=names[0]).wait_for()
-                page.evaluate(OBSERVE)
-                for index in range(SWITCHES):
-                    result = client.request([("Indoor", "Outdoor")[index % 2]])
-                    assert result.success, result.message
-                    deadline = time.monotonic() + 0.15
-                    while time.monotonic() < deadline or result.epoch not in stamps:
-                        rclpy.spin_once(node, timeout_sec=0.02)
-                seen = page.evaluate("() => window.seen")
-                latencies = [
-                    seen[str(epoch)] - published * 1000
-                    for epoch, published in stamps.items()
-                    if str(epoch) in seen and epoch > first
-                ]
-                heap_before, rss_before = _heap(page), _rss_kib(dashboard.pid)
-                for index in range(SOAK):
-                    client.request([("Indoor", "Outdoor")[index % 2]])
-                last = client.query().epoch
-                page.locator('[data-testid="epoch"]', has_text=f"epoch {last}").wait_for()
-                time.sleep(1.0)
-                heap_after, rss_after = _heap(page), _rss_kib(dashboard.pid)
+                bench.page = browser.new_page()
+                bench.page.goto(url)
+                bench.page.locator('[data-testid="nodes"]', has_text=names[0]).wait_for()
+                bench.page.evaluate(OBSERVE)
+                yield bench
                 browser.close()
         finally:
             node.destroy_node()
             rclpy.try_shutdown()
+
+
+@dataclass
+class _Bench:
+    client: Any
+    node: Any
+    dashboard_pid: int
+    page: Any = None
+    stamps: dict[int, float] = field(default_factory=dict)  # epoch -> the state's stamp (s)
+
+    def switch(self, index: int, pause: float) -> None:
+        """One switch, then `pause` seconds (and until its state was heard here)."""
+        import rclpy
+
+        result = self.client.request([("Indoor", "Outdoor")[index % 2]])
+        assert result.success, result.message
+        deadline = time.monotonic() + pause
+        while time.monotonic() < deadline or result.epoch not in self.stamps:
+            rclpy.spin_once(self.node, timeout_sec=0.02)
+
+    def latencies(self, since_epoch: int) -> list[float]:
+        seen = self.page.evaluate("() => window.seen")
+        return [
+            seen[str(epoch)] - published * 1000
+            for epoch, published in self.stamps.items()
+            if str(epoch) in seen and epoch > since_epoch
+        ]
+
+    def memory(self) -> tuple[int, int]:
+        """The page's JS heap after a garbage collection, the dashboard's RSS (KiB)."""
+        heap = self.page.evaluate("() => { gc(); return performance.memory.usedJSHeapSize; }")
+        return int(heap) // 1024, _rss_kib(self.dashboard_pid)
+
+
+def run() -> list[dict[str, Any]]:
+    with _system() as bench:
+        first = bench.client.query().epoch
+        for index in range(SWITCHES):
+            bench.switch(index, 0.15)
+        latencies = bench.latencies(first)
+        before = bench.memory()
+        for index in range(SOAK):
+            bench.client.request([("Indoor", "Outdoor")[index % 2]])
+        last = bench.client.query().epoch
+        bench.page.locator('[data-testid="epoch"]', has_text=f"epoch {last}").wait_for()
+        time.sleep(1.0)
+        after = bench.memory()
     return [
         {
             "switches": len(latencies),
             "median_ms": statistics.median(latencies),
             "p90_ms": statistics.quantiles(latencies, n=10)[-1],
             "max_ms": max(latencies),
-            "heap_kib": (heap_before // 1024, heap_after // 1024),
-            "rss_kib": (rss_before, rss_after),
+            "heap_kib": (before[0], after[0]),
+            "rss_kib": (before[1], after[1]),
         }
     ]
+
+
+def soak(seconds: float) -> None:
+    """A page left open: a switch every 2 s for `seconds`; each minute, the memory and the
+    latency of that minute's switches (`python -m benchmarks.dashboard --open-for 3600`)."""
+    with _system() as bench:
+        started = time.monotonic()
+        index, minute_start = 0, bench.client.query().epoch
+        print("minute  page heap KiB  dashboard RSS KiB  switches  median ms  max ms", flush=True)
+        while time.monotonic() - started < seconds:
+            bench.switch(index, 2.0)
+            index += 1
+            if index % 30 == 0:
+                latencies = bench.latencies(minute_start)
+                minute_start = bench.client.query().epoch
+                heap, rss = bench.memory()
+                print(
+                    f"{index // 30:6d}  {heap:13d}  {rss:17d}  {len(latencies):8d}  "
+                    f"{statistics.median(latencies):9.1f}  {max(latencies):6.1f}",
+                    flush=True,
+                )
 
 
 def markdown(rows: list[dict[str, Any]]) -> str:
@@ -135,3 +185,9 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             f"{row['rss_kib'][0]} -> {row['rss_kib'][1]} KiB |",
         ]
     )
+
+
+if __name__ == "__main__":
+    parser = argparse.ArgumentParser(description=soak.__doc__)
+    parser.add_argument("--open-for", type=float, default=600.0, metavar="S")
+    soak(parser.parse_args().open_for)

@@ -247,26 +247,26 @@ def test_a_manual_command_drops_the_refused_firings_older_than_it(client: LayerC
         runner = manager.rules
         assert runner is not None
         sent: list[Firing] = []
-        runner._submit = sent.append  # type: ignore[method-assign]
+        runner.firings._send_command = sent.append
         night = Firing("Dark", ("Night",), (), "light.lux < 10", 0)
 
         def state(epoch: int, requester: str) -> None:
             manager._run([PublishState(LayerState(epoch, ("Day",), requester=requester))])
 
         # Refused, then the operator's state: the refusal is dropped, not retried.
-        runner._fire([night])
+        runner.firings.fire([night])
         runner.refused(night)
         state(1, "operator")
         runner.retry()
         assert sent == [night], "no retry over the operator's state"
         # Refused only after the operator's state came (its command was under way): dropped.
-        runner._fire([night])
+        runner.firings.fire([night])
         state(2, "operator")
         runner.refused(night)
         runner.retry()
         assert sent == [night, night]
         # A state another rule (or the manager's recovery) caused: retried as before.
-        runner._fire([night])
+        runner.firings.fire([night])
         runner.refused(night)
         state(3, "manager")
         runner.retry()
