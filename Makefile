@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe dashboard
 
 all: test
 
@@ -78,6 +78,11 @@ $(BROWSER):
 	command -v apt-get >/dev/null || { echo "the dashboard's test needs Chromium at $@"; exit 1; }
 	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq
 	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+
+# The live page of the demos: both robots (the cleaner in /, the rescue robot in /rescue1),
+# in the demos' domain ($$ROS_DOMAIN_ID, else 42, as examples/launch.py). Start it first.
+dashboard: ros
+	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(VENV)/bin/contextros dashboard --namespace / /rescue1
 
 # docs/observability.md's walkthrough: the rescue robot watched, recorded and replayed; writes
 # its screenshot and plots into docs/images.

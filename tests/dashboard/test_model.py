@@ -38,18 +38,23 @@ def test_each_switch_gets_each_nodes_latency_whichever_message_comes_first() -> 
     clock = Clock()
     changes: list[int] = []
     m = DashboardModel(["/r1"], on_change=lambda: changes.append(1), clock=clock)
+    status(m, "/a", 0, stamp=999.0)
+    status(m, "/b", 0, stamp=999.0)
+    m.state("/r1", 3, ["Indoor"], "op", "before /late joined", stamp=999.5, manager_id="m")
+    status(m, "/late", 3, stamp=999.9)  # a join, not a switch's latency
     m.state("/r1", 4, ["Indoor"], "rule Gps", "no fix", stamp=1000.0, manager_id="m")
     status(m, "/a", 4, stamp=1000.004)
     status(m, "/b", 5, stamp=1000.020)  # overtakes the state of epoch 5
     m.state("/r1", 5, ["Outdoor"], "rule Gps", "fix", stamp=1000.010, manager_id="m")
     snapshot = m.snapshot()["robots"][0]
-    assert [s["epoch"] for s in snapshot["history"]] == [5, 4]
+    assert [s["epoch"] for s in snapshot["history"]] == [5, 4, 3]
     assert snapshot["history"][0]["latency_ms"] == {"/b": 10.0}
     assert snapshot["history"][1]["latency_ms"] == {"/a": 4.0, "/b": 20.0}
+    assert "/late" not in snapshot["history"][2]["latency_ms"]
     nodes = {n["node"]: n for n in snapshot["nodes"]}
     assert (nodes["/a"]["state"], nodes["/a"]["lag"]) == ("lags", 1)
     assert (nodes["/b"]["state"], nodes["/b"]["language"]) == ("ok", "C++")
-    assert len(changes) == 4
+    assert len(changes) == 8
 
 
 def test_silent_twin_and_failed_nodes_and_a_silent_manager() -> None:

@@ -48,6 +48,7 @@ class _Node:
     manager_lost: bool = False
     hosted: tuple[str, ...] = ()
     heard: float = 0.0  # wall clock of its last status
+    joined: float = 0.0  # the stamp of its first status: switches before it are not its
     applied_stamp: float = 0.0  # the stamp of the status that reported its newest epoch
     left: bool = False
 
@@ -144,7 +145,7 @@ class DashboardModel:
         """A participant's status message."""
         with self._lock:
             robot = self._robots[namespace]
-            entry = robot.nodes.get(node) or _Node(node)
+            entry = robot.nodes.get(node) or _Node(node, joined=stamp)
             newly_applied = applied_epoch > entry.applied_epoch
             entry.language, entry.layers = language, tuple(layers)
             entry.applied_epoch = max(entry.applied_epoch, applied_epoch)
@@ -156,7 +157,11 @@ class DashboardModel:
             if newly_applied:
                 entry.applied_stamp = stamp
                 for switch in robot.history:
-                    if switch.epoch <= applied_epoch and node not in switch.latency_ms:
+                    if (
+                        switch.epoch <= applied_epoch
+                        and node not in switch.latency_ms
+                        and switch.published >= entry.joined
+                    ):
                         switch.latency_ms[node] = round((stamp - switch.published) * 1000, 2)
             self._forget(robot)
             self._changed()
