@@ -144,7 +144,9 @@ def message_types(type_name: str) -> FieldLookup:
     raise ValueError(f"message package {type_name.split('/')[0]!r} is not installed here")
 
 
-def offline(rules: str, declarations: str = "topic battery: sensor_msgs/msg/BatteryState\n"):
+def offline(
+    rules: str, declarations: str = "topic battery: sensor_msgs/msg/BatteryState\n"
+) -> list[str]:
     source = LAYERS + declarations + rules
     return [d.render() for d in check_source(source, "robot.layers", message_types=message_types)]
 
@@ -153,8 +155,8 @@ def test_a_declared_type_checks_a_field_offline_at_its_column() -> None:
     assert offline("rule Low: Indoor while battery.percentage < 20\n") == []
     (error,) = offline("rule Low: Indoor while battery.percent < 20\n")
     assert error.splitlines() == [
-        f"robot.layers:{ROW + 1}:24: error: sensor_msgs/msg/BatteryState (the type of topic 'battery') "
-        "has no field 'percent'",
+        f"robot.layers:{ROW + 1}:24: error: sensor_msgs/msg/BatteryState (the type of topic "
+        "'battery') has no field 'percent'",
         "    rule Low: Indoor while battery.percent < 20",
         "                           ^",
     ]
@@ -183,8 +185,8 @@ def test_a_declared_type_not_installed_is_a_note_for_run_time() -> None:
         "topic odom: nav_msgs/msg/Odometry\n",
     )
     assert note.splitlines()[0] == (
-        f"robot.layers:{ROW + 1}:25: note: rule Far's fields on topic 'odom' are checked at run time, "
-        "when the Layer manager sees the topic's type: its declared type "
+        f"robot.layers:{ROW + 1}:25: note: rule Far's fields on topic 'odom' are checked at "
+        "run time, when the Layer manager sees the topic's type: its declared type "
         f"nav_msgs/msg/Odometry (robot.layers:{ROW}) is not available here: message package "
         "'nav_msgs' is not installed here"
     )

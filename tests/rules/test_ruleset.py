@@ -180,9 +180,9 @@ def test_a_type_other_than_the_declared_one_names_both_and_the_declaration() -> 
     declared = RuleSet(
         rules.rules,
         {"robot.layers": "topic battery: sensor_msgs/msg/BatteryState\n"},
-        parse_with_diagnostics(
-            "topic battery: sensor_msgs/msg/BatteryState\n", "robot.layers"
-        )[0].topics,
+        parse_with_diagnostics("topic battery: sensor_msgs/msg/BatteryState\n", "robot.layers")[
+            0
+        ].topics,
     )
     assert declared.type_mismatch("battery", "/r/battery", "sensor_msgs/msg/BatteryState") is None
     mismatch = declared.type_mismatch("battery", "/r/battery", "std_msgs/msg/Float32")
