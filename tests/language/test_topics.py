@@ -192,6 +192,23 @@ def test_a_declared_type_not_installed_is_a_note_for_run_time() -> None:
     )
 
 
+def test_a_nested_type_not_installed_is_a_note_not_a_crash() -> None:
+    def nested_missing(type_name: str) -> FieldLookup:
+        def lookup(path: tuple[str, ...]) -> str | None:
+            raise ValueError("message package 'robot_msgs' is not installed here")
+
+        return lookup
+
+    source = LAYERS + "topic battery: sensor_msgs/msg/BatteryState\n"
+    source += "rule Low: Indoor while battery.cells.low\n"
+    (note,) = check_source(source, "robot.layers", message_types=nested_missing)
+    assert note.severity.value == "note"
+    assert note.message.endswith(
+        "a type inside its declared type sensor_msgs/msg/BatteryState is not available here: "
+        "message package 'robot_msgs' is not installed here"
+    )
+
+
 def test_without_a_lookup_the_checker_leaves_fields_alone() -> None:
     source = (
         LAYERS + "topic battery: sensor_msgs/msg/BatteryState\n"

@@ -200,7 +200,14 @@ class RuleSet:
                     f"is not available here: {error}"
                 )
                 continue
-            found += self.check_fields(topic, lookup, declaration.type_name, known)
+            try:
+                found += self.check_fields(topic, lookup, declaration.type_name, known)
+            except ValueError as error:  # a nested type not available here
+                unknown[topic] = (
+                    f"a type inside its declared type {declaration.type_name} is not "
+                    f"available here: {error}"
+                )
+                continue
             known[topic] = (lookup, declaration.type_name)
         for rule in self.rules:
             sink = self.sink_for(rule)
