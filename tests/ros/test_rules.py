@@ -3,6 +3,7 @@ with the rule as their reason, manual commands beside them, field errors before 
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -101,6 +102,38 @@ def test_a_rule_activates_its_layer_with_itself_as_the_reason(
         5,
         "the manager's log of the rule's activation",
     )
+
+
+def test_status_shows_each_rule_s_value_hold_timer_hysteresis_and_last_firing(
+    client: LayerClient, sensors: Sensors
+) -> None:
+    sensors.keep_publishing(lambda: "Night" in active(client), percentage=10.0, fix=-1)
+    sensors.publish(percentage=23.0)  # above 20, within the hysteresis: still low
+
+    def battery_rule() -> dict[str, object]:
+        shown = contextros("status", "--json")
+        assert shown.returncode == 0, shown.stderr
+        rules = {rule["name"]: rule for rule in json.loads(shown.stdout)["rules"]}
+        assert set(rules) == {"Battery", "Place"}
+        return rules["Battery"]
+
+    deadline = time.monotonic() + 10
+    while (rule := battery_rule())["readings"] != ["battery.percentage = 23.0"]:
+        assert time.monotonic() < deadline, rule
+        sensors.publish(percentage=23.0)
+    assert rule["where"] == "robot.layers:2"
+    assert (rule["value"], rule["settled"], rule["relaxed"], rule["hysteresis"]) == (
+        "true",
+        "true",
+        True,
+        5.0,
+    )
+    assert rule["last_firing"] == "activate Night"
+    assert rule["last_outcome"].startswith("epoch "), rule
+    text = contextros("status").stdout
+    assert "Battery: Night while battery.percentage < 20 for 0.2 s hysteresis 5" in text
+    assert "hysteresis 5 engaged" in text
+    assert "Place: Outdoor while gps.status.status >= 0 else Indoor" in text
 
 
 def test_hysteresis_and_a_group_choice(client: LayerClient, sensors: Sensors) -> None:

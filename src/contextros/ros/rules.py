@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from contextros_interfaces.msg import RuleInfo
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -21,6 +22,7 @@ from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
 from contextros.ros.message_types import field_kind, message_class
 from contextros.rules import Firing, RuleEngine, RuleSet
+from contextros.rules.firings import FiringQueue
 from contextros.rules.ruleset import FieldKind
 
 __all__ = ["RULE_QOS", "RuleRunner", "field_kind", "message_class"]
@@ -46,21 +48,22 @@ class RuleRunner:
         self.node = node
         self.rules = rules
         self.engine = RuleEngine(rules)
-        self._submit = submit
-        self._relations = relations
         self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
         self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
+        self._failed_why: dict[str, str] = {}  # topic -> why its rules are off
         # Topics bound so far: (field lookup, type name), to check fields compared across topics.
         self._known: dict[str, tuple[Callable[[tuple[str, ...]], FieldKind], str]] = {}
         self._subscriptions: list[Any] = []
         self.errors: list[Diagnostic] = []
-        # Firings the manager refused (a relation, say): tried again after each new state
-        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings"), or
-        # a state no rule caused (an operator's command) is published: that one stands.
-        self._refused: dict[str, Firing] = {}
-        self._requesters = {f"rule {rule.name}" for rule in rules.rules} | {RECOVERY_REQUESTER}
-        self._manual_states = 0  # states published that no rule caused, so far
-        self._submitted_at: dict[str, int] = {}  # rule -> _manual_states when it last fired
+        self._rules_by_name = {rule.name: rule for rule in rules.rules}
+        # Overridden, refused and retried firings (docs/rules.md, "refused firings").
+        self.firings = FiringQueue(
+            self._rules_by_name,
+            submit,
+            relations,
+            lambda text: node.get_logger().info(text),
+            automatic_requesters=(RECOVERY_REQUESTER,),
+        )
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
             node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
@@ -86,6 +89,7 @@ class RuleRunner:
         if self._failed.get(topic) != type_name:
             self.node.get_logger().error(f"rules on {topic} stay off: {why}")
             self._failed[topic] = type_name
+            self._failed_why[topic] = why
 
     def _bind(self, topic: str, resolved: str, type_name: str) -> None:
         mismatch = self.rules.type_mismatch(topic, resolved, type_name)
@@ -109,6 +113,7 @@ class RuleRunner:
         if problems:
             self.errors += problems
             self._failed[topic] = type_name
+            self._failed_why[topic] = "; ".join(problem.message for problem in problems)
             del self._unbound[topic]
             for problem in problems:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
@@ -136,59 +141,48 @@ class RuleRunner:
             for failure in self.engine.failures:
                 self.node.get_logger().error(f"{failure} (a message on {topic})")
             self.engine.failures.clear()
-        self._fire(firings)
+        self.firings.fire(firings)
 
     def tick(self) -> None:
-        self._fire(self.engine.tick(time.monotonic()))
+        self.firings.fire(self.engine.tick(time.monotonic()))
 
     def refused(self, firing: Firing) -> None:
-        """The manager refused `firing`: keep it for the next state (unless newer), unless a
-        manual command set a state since it was submitted (that command stands)."""
-        if self._submitted_at.get(firing.rule, self._manual_states) != self._manual_states:
-            self._dropped(firing)
-            return
-        self._refused.setdefault(firing.rule, firing)
+        self.firings.refused(firing)
 
     def published(self, state: LayerState) -> None:
-        """The manager published `state`. One that no rule and no recovery caused is a manual
-        command: it stands until a rule's condition changes, so the refused firings, older
-        than it, are dropped (docs/rules.md, "manual commands and rules")."""
-        if state.requester in self._requesters:
-            return
-        self._manual_states += 1
-        for firing in self._refused.values():
-            self._dropped(firing)
-        self._refused.clear()
-
-    def _dropped(self, firing: Firing) -> None:
-        self.node.get_logger().info(
-            f"{firing.requester}: its refused firing is dropped, a manual command came after "
-            "it (it acts again when its condition changes)"
-        )
+        self.firings.published(state.requester)
 
     def retry(self) -> None:
-        """A new state: the refused firings may pass now (in file order)."""
-        waiting = sorted(self._refused.values(), key=lambda f: f.priority)
-        self._refused.clear()
-        for firing in waiting:
-            self._send(firing)
+        self.firings.retry()
 
-    def _send(self, firing: Firing) -> None:
-        self._submitted_at[firing.rule] = self._manual_states
-        self._submit(firing)
+    def outcome(self, firing: Firing, text: str) -> None:
+        """What the manager made of `firing` (shown by `status` and the dashboard)."""
+        self.firings.outcome(firing, text)
 
-    def _fire(self, firings: list[Firing]) -> None:
-        if not firings:
-            return
-        if len(firings) > 1:
-            from contextros.rules import resolve
-
-            firings, overridden = resolve(firings, self._relations())
-            for firing in overridden:
-                self.node.get_logger().warning(
-                    f"{firing.requester} ({firing.reason}) overridden by a rule declared "
-                    "before it (contradicting targets)"
+    def infos(self) -> list[Any]:
+        """Every rule's value, hold timer, hysteresis state and last firing (RuleInfo)."""
+        infos = []
+        for report in self.engine.report(time.monotonic()):
+            rule = self._rules_by_name[report.name]
+            off = [self._failed_why[ref.topic] for ref in rule.fields if ref.topic in self._failed]
+            error = report.error or (off[0] if off else "")
+            last_firing, last_outcome = self.firings.last.get(report.name, ("", ""))
+            infos.append(
+                RuleInfo(
+                    name=report.name,
+                    where=report.where,
+                    text=report.text,
+                    value="off" if error else report.value_text,
+                    settled="" if report.settled is None else str(report.settled).lower(),
+                    holding=report.holding,
+                    hold_left=report.hold_left,
+                    hold=report.hold,
+                    hysteresis=report.hysteresis,
+                    relaxed=report.relaxed,
+                    readings=[f"{name} = {value}" for name, value in report.readings],
+                    error=error,
+                    last_firing=last_firing,
+                    last_outcome=last_outcome,
                 )
-        for firing in firings:
-            self._refused.pop(firing.rule, None)  # superseded by the rule's new value
-            self._send(firing)
+            )
+        return infos
