@@ -4,6 +4,7 @@ and the manager refuses a topic a real publisher sends with another type than de
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 import time
@@ -128,6 +129,11 @@ def test_the_manager_refuses_a_topic_published_with_another_type_than_declared(
         ), line
         assert "rules on /mismatch/battery stay off" in manager.output()
         assert "rules read /mismatch/battery" not in manager.output()
+        shown = contextros("status", "--json", "--namespace", "/mismatch")
+        assert shown.returncode == 0, shown.stderr
+        (rule,) = json.loads(shown.stdout)["rules"]
+        assert rule["value"] == "off", rule
+        assert "is published as std_msgs/msg/Float32" in rule["error"], rule
         # The wrong publisher goes, one of the declared type comes: the rule runs.
         node.destroy_publisher(wrong)
         right = node.create_publisher(BatteryState, "battery", 10)

@@ -99,6 +99,7 @@ class RuleRunner:
                 self.errors.append(mismatch)
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{mismatch.render()}")
                 self._failed[topic] = type_name
+                self._failed_why[topic] = mismatch.message
             return
         try:
             cls = message_class(type_name)
@@ -119,7 +120,9 @@ class RuleRunner:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
             return
         del self._unbound[topic]
-        self._failed.pop(topic, None)  # refused earlier (another type): its messages count now
+        # Refused earlier (another type): its messages count now.
+        self._failed.pop(topic, None)
+        self._failed_why.pop(topic, None)
         self._known[topic] = (lookup, type_name)
         self._subscriptions.append(
             self.node.create_subscription(
