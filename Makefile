@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean dashboard
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe
 
 all: test
 
@@ -78,6 +78,11 @@ $(BROWSER):
 	command -v apt-get >/dev/null || { echo "the dashboard's test needs Chromium at $@"; exit 1; }
 	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq
 	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+
+# docs/observability.md's walkthrough: the rescue robot watched, recorded and replayed; writes
+# its screenshot and plots into docs/images.
+observe: ros $(VENV)/.stamp-dev $(BROWSER)
+	$(PY) -m examples.rescue.observe
 
 # tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
 # Four workers on two cores: most tests wait on real processes and the network, not the CPU

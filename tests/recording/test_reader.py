@@ -136,3 +136,19 @@ def test_a_message_that_does_not_match_its_schema_is_an_error(tmp_path: Path) ->
         RecordingError, match=r"message 1 on /fix does not decode as sensor_msgs/msg/NavSatFix"
     ):
         list(read_recording(path))
+
+
+def test_any_cut_or_damage_is_a_recording_error_never_another_exception(tmp_path: Path) -> None:
+    whole = battery_recording(tmp_path / "whole.mcap", [float(p) for p in range(60)]).read_bytes()
+    damaged = tmp_path / "damaged.mcap"
+    variants = [whole[:cut] for cut in range(0, len(whole), 53)]
+    variants += [
+        whole[:at] + bytes(b ^ 0x5A for b in whole[at : at + 16]) + whole[at + 16 :]
+        for at in range(0, len(whole) - 16, 211)
+    ]
+    for variant in variants:
+        damaged.write_bytes(variant)
+        try:
+            list(read_recording(damaged))
+        except RecordingError as error:
+            assert str(error).startswith(f"{damaged}: byte "), error

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 from pathlib import Path
@@ -58,6 +59,29 @@ def register_ros(commands: Any, add_namespace_option: Any) -> None:
     record.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     add_namespace_option(record)
     record.set_defaults(run=run_record)
+
+    dashboard = commands.add_parser(
+        "dashboard",
+        help="serve a live web page of the context: layers, switches, nodes, rules, bindings",
+    )
+    dashboard.add_argument(
+        "--namespace",
+        dest="robots",
+        nargs="+",
+        default=["/"],
+        metavar="NS",
+        help="the robots' namespaces, one section each (default /)",
+    )
+    dashboard.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the address to listen on (default 127.0.0.1: this machine only; see "
+        "docs/observability.md before exposing it)",
+    )
+    dashboard.add_argument(
+        "--port", type=int, default=8080, help="the port (default 8080; 0: any free one)"
+    )
+    dashboard.set_defaults(run=run_dashboard)
 
 
 # -- record -----------------------------------------------------------------------------------
@@ -126,6 +150,69 @@ def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
     print(f"recorded {sum(recorder.counts.values())} messages to {args.output} ({counts})")
     if recorder.waiting_for:
         print(f"never seen on the graph: {', '.join(recorder.waiting_for)}", file=sys.stderr)
+    return 0
+
+
+# -- dashboard ------------------------------------------------------------------------------
+
+
+def run_dashboard(args: argparse.Namespace) -> int:
+    from contextros.cli.ros_arguments import namespace_problem
+    from contextros.cli.ros_commands import RosArgumentsError, ros_session, usage_error
+
+    try:
+        import aiohttp  # noqa: F401 - only whether it is there
+    except ImportError as error:
+        return _missing("dashboard", error)
+    for namespace in args.robots:
+        if problem := namespace_problem(namespace):
+            print(f"contextros dashboard: {problem}", file=sys.stderr)
+            return USAGE
+    try:
+        with ros_session(args):
+            return _dashboard(args)
+    except RosArgumentsError as error:
+        return usage_error(error)
+
+
+def _dashboard(args: argparse.Namespace) -> int:
+    import threading
+
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from contextros.dashboard.model import DashboardModel
+    from contextros.dashboard.server import DashboardServer, serve
+    from contextros.ros.dashboard_node import DashboardNode
+
+    model = DashboardModel(args.robots)
+    server = DashboardServer(model)
+    model.on_change = server.notify
+    node = DashboardNode(model, args.robots)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    def spin() -> None:
+        with contextlib.suppress(ExternalShutdownException):
+            executor.spin()
+
+    spinner = threading.Thread(target=spin, name="contextros-dashboard-ros", daemon=True)
+    spinner.start()
+
+    def ready(port: int) -> None:
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        print(f"dashboard on http://{host}:{port}/ (Ctrl-C stops)", flush=True)
+
+    try:
+        serve(server, args.host, args.port, ready)
+    except OSError as error:
+        print(
+            f"contextros dashboard: cannot listen on {args.host}:{args.port}: {error}",
+            file=sys.stderr,
+        )
+        return USAGE
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
     return 0
 
 
@@ -257,14 +344,13 @@ def _print_replay(
     for note in result.notes:
         print(f"note: {note}", file=sys.stderr)
     print(f"{args.recording}: {end - start:.1f} s replayed through {', '.join(args.rules)}")
-    for switch in result.switches:
-        active = ", ".join(switch.active) or "none"
-        print(f"{switch.time - start:9.3f} s  [{active}]  {switch.requester}: {switch.reason}")
-    for refusal in result.refusals:
-        print(
-            f"{refusal.time - start:9.3f} s  rule {refusal.rule} could not {refusal.asked}: "
-            f"{refusal.message}"
-        )
+    events = [
+        (s.time, f"[{', '.join(s.active) or 'none'}]  {s.requester}: {s.reason}")
+        for s in result.switches
+    ]
+    events += [(r.time, f"rule {r.rule} could not {r.asked}: {r.message}") for r in result.refusals]
+    for at, text in sorted(events, key=lambda event: event[0]):
+        print(f"{at - start:9.3f} s  {text}")
     by_rules = sum(1 for *_, who in recorded if who.startswith("rule "))
     made = sum(1 for s in result.switches if s.requester.startswith("rule "))
     print(f"{made} switches by these rules; the recording has {by_rules} made by the live rules")

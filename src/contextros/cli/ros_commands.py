@@ -355,6 +355,8 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
 
 
 def run_status(args: argparse.Namespace) -> int:
+    from contextros.ros.messages import registry_to_dict
+
     try:
         with _client(args, "status") as client:
             try:
@@ -366,98 +368,10 @@ def run_status(args: argparse.Namespace) -> int:
     except RosArgumentsError as error:
         return usage_error(error)
     if args.json:
-        print(json.dumps(_registry_as_dict(registry), indent=2))
+        print(json.dumps(registry_to_dict(registry), indent=2))
     else:
         print(_registry_as_text(registry))
     return 0
-
-
-def _registry_as_dict(registry: Any) -> dict[str, Any]:
-    return {
-        "epoch": registry.epoch,
-        "active": list(registry.active_layers),
-        "requester": registry.requester,
-        "reason": registry.reason,
-        "manager_id": registry.manager_id,
-        "layers": [
-            {
-                "name": layer.name,
-                "group": layer.group,
-                "excludes": list(layer.excludes),
-                "requires": list(layer.required),
-                "after": list(layer.after),
-                "implemented_by": [n for n in nodes.split(",") if n],
-            }
-            for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
-        ],
-        "participants": [
-            {
-                "node": p.node,
-                "layers": list(p.layers),
-                "applied_epoch": p.applied_epoch,
-                "in_critical_section": p.in_critical_section,
-                "silent_for": round(p.silent_for, 3),
-                "lagging": p.lagging,
-                "hosted_nodes": list(p.hosted_nodes),
-                "incarnation": p.incarnation,
-                "conflict": p.conflict,
-            }
-            for p in registry.participants
-        ],
-        "conflicts": list(registry.conflicts),
-        "dropped": list(registry.dropped),
-        "recovering": registry.recovering,
-        "declared_order": _declared_order(registry),
-        "rules": [
-            {
-                "name": rule.name,
-                "where": rule.where,
-                "text": rule.text,
-                "value": rule.value,
-                "settled": rule.settled,
-                "holding": rule.holding,
-                "hold_left": round(rule.hold_left, 3),
-                "hold": rule.hold,
-                "hysteresis": rule.hysteresis,
-                "relaxed": rule.relaxed,
-                "readings": list(rule.readings),
-                "error": rule.error,
-                "last_firing": rule.last_firing,
-                "last_outcome": rule.last_outcome,
-            }
-            for rule in registry.rules
-        ],
-        "bindings": [
-            {
-                "layer": binding.layer,
-                "kind": binding.kind,
-                "node": binding.node,
-                "parameter": binding.parameter,
-                "value": binding.value,
-                "where": binding.where,
-                "ok": binding.ok,
-                "last_result": binding.last_result,
-                "last_time": (
-                    binding.last_time.sec + binding.last_time.nanosec * 1e-9
-                    if binding.last_result
-                    else None
-                ),
-            }
-            for binding in registry.bindings
-        ],
-    }
-
-
-def _declared_order(registry: Any) -> list[str]:
-    """The `after` declarations among the active layers: the manager composed them so."""
-    active = list(registry.active_layers)
-    return [
-        f"{layer.name} after {earlier}"
-        for layer in registry.layers
-        if layer.name in active
-        for earlier in layer.after
-        if earlier in active
-    ]
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -470,7 +384,9 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def _registry_as_text(registry: Any) -> str:
-    data = _registry_as_dict(registry)
+    from contextros.ros.messages import registry_to_dict
+
+    data = registry_to_dict(registry)
     active = ", ".join(data["active"]) or "none"
     by = f"{data['requester'] or '?'}: {data['reason'] or '-'}"
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]

@@ -36,7 +36,6 @@ def read_recording(
     """The messages of `path` (of `topics` only, if given) in file order. RecordingError
     when the file is not MCAP, is damaged or ends early; `note` hears of skipped types."""
     try:
-        from mcap.exceptions import McapError
         from mcap.records import Channel, Message, Schema
         from mcap.stream_reader import StreamReader
         from mcap_ros2.decoder import DecoderFactory
@@ -64,7 +63,7 @@ def read_recording(
                 record = next(records)
             except StopIteration:
                 return
-            except (McapError, ValueError, EOFError, OSError) as error:
+            except Exception as error:  # whatever a damaged file makes the library raise
                 raise RecordingError(_broken(name, stream, count, error)) from None
             if isinstance(record, Schema):
                 schemas[record.id] = record
@@ -117,7 +116,8 @@ def _decoder(factory: Any, channel: Any, schema: Any) -> Callable[[bytes], Any] 
 def _broken(name: str, stream: BinaryIO, count: int, error: Exception) -> str:
     where = f"byte {stream.tell()}"
     kind = type(error).__name__
-    if kind in ("EndOfFile", "EOFError"):
+    at_end = stream.tell() >= os.fstat(stream.fileno()).st_size
+    if kind in ("EndOfFile", "EOFError") or (at_end and kind != "InvalidMagic"):
         what = "the file ends in the middle of a record (truncated: was the recorder killed?)"
     elif kind == "InvalidMagic":
         what = "not an MCAP file (no MCAP magic bytes)"
