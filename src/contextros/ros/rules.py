@@ -1,15 +1,14 @@
 """Context rules inside the Layer manager: topics bound at run time, firings as commands.
 
 Each topic a rule reads is resolved in the manager's namespace; its message type is taken
-from the ROS graph once a publisher appears, the rules' fields are checked against that type
-(an error names file:line:col and the rule stays off) and only then is the topic subscribed,
-so no message is ever evaluated against a field that does not exist. See docs/rules.md.
+from the ROS graph once a publisher appears (and must be the type a `topic` declaration
+gives, if any), the rules' fields are checked against that type (an error names
+file:line:col and the rule stays off) and only then is the topic subscribed, so no message
+is ever evaluated against a field that does not exist. See docs/rules.md.
 """
 
 from __future__ import annotations
 
-import importlib
-import re
 import time
 from collections.abc import Callable
 from typing import Any
@@ -21,78 +20,17 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from contextros.language.diagnostics import Diagnostic
 from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
+from contextros.ros.message_types import field_kind, message_class
 from contextros.rules import Firing, RuleEngine, RuleSet
 from contextros.rules.firings import FiringQueue
 from contextros.rules.ruleset import FieldKind
+
+__all__ = ["RULE_QOS", "RuleRunner", "field_kind", "message_class"]
 
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
 RULE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
 )
-_TYPE_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z_][A-Za-z0-9_]*)$")
-_NESTED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z_][A-Za-z0-9_]*)$")
-# A byte (IDL octet) arrives from rclpy as `bytes` of length 1: the engine compares its number.
-# A char (IDL char/wchar) arrives as a one-character `str`.
-_NUMBERS = {
-    "octet",
-    "byte",
-    "float",
-    "double",
-    "long double",
-    "int8",
-    "uint8",
-    "int16",
-    "uint16",
-    "int32",
-    "uint32",
-    "int64",
-    "uint64",
-}
-_CHARACTERS = {"char", "wchar"}
-
-
-def message_class(type_name: str) -> Any:
-    """The Python class of a message type named by the graph ('sensor_msgs/msg/NavSatFix').
-    The name comes from the network: only the `pkg/msg/Name` form is imported, from
-    `pkg.msg`; anything else is a ValueError naming it."""
-    match = _TYPE_NAME.match(type_name)
-    if match is None:
-        raise ValueError(f"{type_name!r} is not a message type name (pkg/msg/Name)")
-    package, name = match.groups()
-    try:
-        module = importlib.import_module(f"{package}.msg")
-    except ImportError as error:
-        raise ValueError(f"message package {package!r} is not installed here: {error}") from error
-    cls = getattr(module, name, None)
-    if cls is None or not hasattr(cls, "get_fields_and_field_types"):
-        raise ValueError(f"{package}.msg has no message type {name!r}")
-    return cls
-
-
-def field_kind(cls: Any, path: tuple[str, ...]) -> FieldKind:
-    """What `path` is in message class `cls`: number, string, bool, message, array or None."""
-    kind: str | None = None
-    for index, name in enumerate(path):
-        fields: dict[str, str] = cls.get_fields_and_field_types()
-        ros_type = fields.get(name)
-        if ros_type is None:
-            return None
-        if ros_type.startswith("sequence<") or "[" in ros_type:
-            kind = "array"
-        elif ros_type == "boolean":
-            kind = "bool"
-        elif ros_type in _NUMBERS:
-            kind = "number"
-        elif ros_type in _CHARACTERS or ros_type.startswith(("string", "wstring")):
-            kind = "string"
-        elif nested := _NESTED.match(ros_type):
-            kind = "message"
-            cls = message_class(f"{nested.group(1)}/msg/{nested.group(2)}")
-        else:
-            kind = "array"  # anything else is not comparable
-        if kind != "message" and index < len(path) - 1:
-            return None  # a plain value has no fields
-    return kind
 
 
 class RuleRunner:
@@ -154,6 +92,15 @@ class RuleRunner:
             self._failed_why[topic] = why
 
     def _bind(self, topic: str, resolved: str, type_name: str) -> None:
+        mismatch = self.rules.type_mismatch(topic, resolved, type_name)
+        if mismatch is not None:
+            # Not bound: a publisher of the declared type may come instead (checked again).
+            if self._failed.get(topic) != type_name:
+                self.errors.append(mismatch)
+                self.node.get_logger().error(f"rules on {resolved} stay off:\n{mismatch.render()}")
+                self._failed[topic] = type_name
+                self._failed_why[topic] = mismatch.message
+            return
         try:
             cls = message_class(type_name)
         except ValueError as error:
@@ -173,6 +120,9 @@ class RuleRunner:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
             return
         del self._unbound[topic]
+        # Refused earlier (another type): its messages count now.
+        self._failed.pop(topic, None)
+        self._failed_why.pop(topic, None)
         self._known[topic] = (lookup, type_name)
         self._subscriptions.append(
             self.node.create_subscription(
