@@ -17,7 +17,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from contextros.recording.definitions import DefinitionError, message_definition
-from contextros.ros.rules import message_class
+from contextros.ros.message_types import message_class
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
