@@ -6,6 +6,8 @@ from typing import Any
 
 from contextros.dashboard import model as dashboard
 from contextros.dashboard.model import DashboardModel
+from contextros.protocol.events import ParticipantReport
+from contextros.protocol.relations import LayerDeclaration
 
 
 class Clock:
@@ -17,21 +19,10 @@ class Clock:
 
 
 def status(m: DashboardModel, node: str, epoch: int, stamp: float, **extra: Any) -> None:
-    fields: dict[str, Any] = {
-        "language": "C++",
-        "layers": ["Indoor", "Outdoor"],
-        "applied_epoch": epoch,
-        "critical": False,
-        "pending_epoch": 0,
-        "failed_epoch": 0,
-        "error": "",
-        "manager_lost": False,
-        "hosted": [],
-        "leaving": False,
-        "stamp": stamp,
-    }
-    fields.update(extra)
-    m.status("/r1", node, **fields)
+    language = extra.pop("language", "C++")
+    layers = (LayerDeclaration("Indoor"), LayerDeclaration("Outdoor"))
+    report = ParticipantReport(node, "i", layers, applied_epoch=epoch, **extra)
+    m.status("/r1", report, language=language, stamp=stamp)
 
 
 def test_each_switch_gets_each_nodes_latency_whichever_message_comes_first() -> None:

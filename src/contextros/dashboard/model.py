@@ -13,6 +13,8 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
+from contextros.protocol.events import ParticipantReport
+
 HISTORY = 50  # switches kept per robot
 FORGET_AFTER = 60.0  # seconds a silent node stays on the page (greyed out)
 LIVENESS = 3.0  # a node silent this long is shown as silent (the manager's default bound)
@@ -126,33 +128,21 @@ class DashboardModel:
             self._changed()
 
     def status(
-        self,
-        namespace: str,
-        node: str,
-        *,
-        language: str,
-        layers: Iterable[str],
-        applied_epoch: int,
-        critical: bool,
-        pending_epoch: int,
-        failed_epoch: int,
-        error: str,
-        manager_lost: bool,
-        hosted: Iterable[str],
-        leaving: bool,
-        stamp: float,
+        self, namespace: str, report: ParticipantReport, *, language: str, stamp: float
     ) -> None:
-        """A participant's status message."""
+        """A participant's status message (`stamp`: when it sent it, its wall clock)."""
+        node, applied_epoch = report.node, report.applied_epoch
         with self._lock:
             robot = self._robots[namespace]
             entry = robot.nodes.get(node) or _Node(node, joined=stamp)
             newly_applied = applied_epoch > entry.applied_epoch
-            entry.language, entry.layers = language, tuple(layers)
+            entry.language = language[:MAX_TEXT]
+            entry.layers = tuple(layer.name for layer in report.layers)
             entry.applied_epoch = max(entry.applied_epoch, applied_epoch)
-            entry.critical, entry.pending_epoch = critical, pending_epoch
-            entry.failed_epoch, entry.error = failed_epoch, error[:MAX_TEXT]
-            entry.manager_lost, entry.hosted = manager_lost, tuple(hosted)
-            entry.heard, entry.left = self._clock(), leaving
+            entry.critical, entry.pending_epoch = report.in_critical_section, report.pending_epoch
+            entry.failed_epoch, entry.error = report.failed_epoch, report.error[:MAX_TEXT]
+            entry.manager_lost, entry.hosted = report.manager_lost, report.hosted
+            entry.heard, entry.left = self._clock(), report.leaving
             robot.nodes[node] = entry
             if newly_applied:
                 entry.applied_stamp = stamp

@@ -305,33 +305,29 @@ class BindingDriver:
     def infos(self) -> list[Any]:
         """Every declaration with the last result of applying it (BindingInfo messages)."""
         results = dict(self._results)
+        declared = [
+            (p.layer.name, "parameter", p.node, p.name, _shown_value(p.value), p.path, p.at)
+            for p in self.bindings.parameters
+        ] + [
+            (c.layer.name, "lifecycle", c.node, "", c.state, c.path, c.at)
+            for c in self.bindings.lifecycles
+        ]
         infos = []
-        for p in self.bindings.parameters:
-            node = self.resolve(p.node)
-            infos.append(
-                _binding_info(
-                    p.layer.name,
-                    "parameter",
-                    node,
-                    p.name,
-                    _shown_value(p.value),
-                    f"{p.path}:{p.at.line}:{p.at.col}",
-                    results.get((node, p.name)),
-                )
+        for layer, kind, declared_node, parameter, value, path, at in declared:
+            node = self.resolve(declared_node)
+            info = BindingInfo(
+                layer=layer,
+                kind=kind,
+                node=node,
+                parameter=parameter,
+                value=value,
+                where=f"{path}:{at.line}:{at.col}",
             )
-        for c in self.bindings.lifecycles:
-            node = self.resolve(c.node)
-            infos.append(
-                _binding_info(
-                    c.layer.name,
-                    "lifecycle",
-                    node,
-                    "",
-                    c.state,
-                    f"{c.path}:{c.at.line}:{c.at.col}",
-                    results.get((node, "")),
-                )
-            )
+            result = results.get((node, parameter))
+            if result is not None:
+                info.ok, info.last_result = result.ok, result.text
+                info.last_time = seconds_to_stamp(result.wall)
+            infos.append(info)
         return infos
 
     # -- service calls ------------------------------------------------------------------
@@ -424,24 +420,6 @@ class BindingResult:
 
 def _shown_value(value: Any) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else repr(value)
-
-
-def _binding_info(
-    layer: str,
-    kind: str,
-    node: str,
-    parameter: str,
-    value: str,
-    where: str,
-    result: BindingResult | None,
-) -> Any:
-    info = BindingInfo(
-        layer=layer, kind=kind, node=node, parameter=parameter, value=value, where=where
-    )
-    if result is not None:
-        info.ok, info.last_result = result.ok, result.text
-        info.last_time = seconds_to_stamp(result.wall)
-    return info
 
 
 def _value_to_json(message: Any) -> dict[str, Any]:

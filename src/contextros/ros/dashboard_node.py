@@ -16,7 +16,7 @@ from contextros_interfaces.srv import QueryRegistry
 from rclpy.node import Node
 
 from contextros.dashboard.model import DashboardModel
-from contextros.ros.messages import registry_to_dict, stamp_to_seconds
+from contextros.ros.messages import registry_to_dict, report_from_msg, stamp_to_seconds
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -70,20 +70,12 @@ class DashboardNode(Node):
 
     def _status(self, namespace: str) -> Any:
         def on_status(msg: Any) -> None:
+            try:
+                report = report_from_msg(msg)
+            except (AttributeError, TypeError, ValueError):  # a foreign sender: not shown
+                return
             self.model.status(
-                namespace,
-                msg.node,
-                language=msg.language,
-                layers=[layer.name for layer in msg.layers],
-                applied_epoch=msg.applied_epoch,
-                critical=msg.in_critical_section,
-                pending_epoch=msg.pending_epoch,
-                failed_epoch=msg.failed_epoch,
-                error=msg.error,
-                manager_lost=msg.manager_lost,
-                hosted=msg.hosted_nodes,
-                leaving=msg.leaving,
-                stamp=stamp_to_seconds(msg.stamp),
+                namespace, report, language=msg.language, stamp=stamp_to_seconds(msg.stamp)
             )
 
         return on_status
