@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
 from contextros.errors import LayerError
 
-USAGE, FAILED = 2, 1
+USAGE = 2
+# The manager's node name (contextros.ros.topics.MANAGER_NODE_NAME, which imports rclpy).
 MANAGER_NODE = "contextros_manager"
 
 
@@ -133,11 +135,14 @@ def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
     from rclpy.node import Node
 
     from contextros.ros import spin_nodes
-    from contextros.ros.recorder import Recorder
+    from contextros.ros.recorder import Recorder, TopicNameError
 
-    node = Node(f"contextros_record_{__import__('os').getpid()}")
+    node = Node(f"contextros_record_{os.getpid()}")
     try:
         recorder = Recorder(node, args.output, topics)
+    except TopicNameError as error:
+        print(f"contextros record: {error}", file=sys.stderr)
+        return USAGE
     except OSError as error:
         print(f"contextros record: cannot write {args.output}: {error.strerror}", file=sys.stderr)
         return USAGE
@@ -220,9 +225,13 @@ def _dashboard(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    from contextros.cli.ros_arguments import namespace_problem
     from contextros.recording import RecordingError
     from contextros.rules import RuleSet
 
+    if problem := namespace_problem(args.namespace):
+        print(f"contextros rules replay: {problem}", file=sys.stderr)
+        return USAGE
     try:
         rules = RuleSet.from_files(args.rules)
     except LayerError as error:

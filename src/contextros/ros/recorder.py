@@ -54,10 +54,10 @@ class Recorder:
 
         self.node = node
         self.output = output
+        self._unbound = {_resolved(node, t): qos for t, qos in topics.items()}
         self._stream: BinaryIO = output.open("wb")
         self._writer = Writer(self._stream, chunk_size=CHUNK_SIZE, compression=_compression())
         self._writer.start(profile="ros2", library="contextros record")
-        self._unbound = {node.resolve_topic_name(t): qos for t, qos in topics.items()}
         self._schemas: dict[str, int] = {}
         self._refused: dict[str, str] = {}  # topic -> the type it was refused with
         self._subscriptions: list[Any] = []
@@ -130,6 +130,18 @@ class Recorder:
             self._writer.finish()  # type: ignore[no-untyped-call]
         finally:
             self._stream.close()
+
+
+class TopicNameError(ValueError):
+    """A topic name ROS does not accept."""
+
+
+def _resolved(node: Node, topic: str) -> str:
+    try:
+        return node.resolve_topic_name(topic)
+    except Exception as error:  # rclpy raises its RCLError, not exported as a type
+        reason = str(error).split(", at ")[0].removeprefix("failed to resolve name: ")
+        raise TopicNameError(f"topic {topic!r}: {reason}") from None
 
 
 def _compression() -> Any:
