@@ -6,7 +6,7 @@ PY     := $(VENV)/bin/python
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe dashboard
 
 all: test
 
@@ -17,7 +17,7 @@ UV := $(VENV)/bin/uv pip install --quiet --python $(PY)
 $(VENV)/.stamp-base: pyproject.toml
 	$(PYTHON) -m venv --without-pip $(VENV)
 	$(PYTHON) -m pip --python $(PY) install --quiet 'uv>=0.9'
-	$(UV) 'scikit-build-core>=0.11,<2' -r pyproject.toml --extra ros --extra ros-build
+	$(UV) 'scikit-build-core>=0.11,<2' -r pyproject.toml --extra ros --extra ros-build --extra observe
 	$(UV) --no-build-isolation --no-deps -e .
 	touch $@
 
@@ -70,10 +70,29 @@ demo: ros cpp-demo
 demo-rescue: ros
 	$(PY) -m examples.rescue.demo
 
+# Debian's Chromium, for the dashboard's test in a real browser (tests/observe), when the
+# machine has none (a fresh CI machine has none).
+BROWSER := /usr/bin/chromium
+SUDO := $(if $(filter 0,$(shell id -u)),,sudo)
+$(BROWSER):
+	command -v apt-get >/dev/null || { echo "the dashboard's test needs Chromium at $@"; exit 1; }
+	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+
+# The live page of the demos: both robots (the cleaner in /, the rescue robot in /rescue1),
+# in the demos' domain ($$ROS_DOMAIN_ID, else 42, as examples/launch.py). Start it first.
+dashboard: ros
+	ROS_DOMAIN_ID=$${ROS_DOMAIN_ID:-42} $(VENV)/bin/contextros dashboard --namespace / /rescue1
+
+# docs/observability.md's walkthrough: the rescue robot watched, recorded and replayed; writes
+# its screenshot and plots into docs/images.
+observe: ros $(VENV)/.stamp-dev $(BROWSER)
+	$(PY) -m examples.rescue.observe
+
 # tests/cpp runs the C++ tests (ctest) and checks the C++ headers; pytest's summary ends it.
 # Four workers on two cores: most tests wait on real processes and the network, not the CPU
 # (pytest used 1.2 cores with two workers).
-test: ros cpp $(VENV)/.stamp-dev
+test: ros cpp $(VENV)/.stamp-dev $(BROWSER)
 	$(PY) -m pytest -n 4 -q -m "not slow"
 
 # What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).

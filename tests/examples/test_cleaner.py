@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import json
+import signal
 import subprocess
 import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -11,8 +14,10 @@ from examples.launch import REPOSITORY, ros_environment
 
 from contextros import set_active
 from contextros.language import load
+from tests.examples.conftest import DOMAIN_ID
 
-location = load(Path(REPOSITORY, "examples", "cleaner", "location.layers"))
+RULES = Path(REPOSITORY, "examples", "cleaner", "location.layers")
+location = load(RULES)
 
 
 def test_indoors_the_robot_dead_reckons_from_the_gyro_and_wipes() -> None:
@@ -43,17 +48,51 @@ def lines_of(output: str, process: str) -> list[str]:
     return found
 
 
-@pytest.mark.ros
-def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_id: int) -> None:
-    """One manager switches the C++ localization node and the Python cleaning node."""
-    demo = subprocess.run(
-        [sys.executable, "-m", "examples.demo"],
-        cwd=REPOSITORY,
-        env=ros_environment(domain_id),
-        capture_output=True,
+@dataclass(frozen=True)
+class RecordedDemo:
+    demo: subprocess.CompletedProcess[str]
+    recording: Path
+    recorder_output: str
+
+
+@pytest.fixture(scope="module")
+def recorded_demo(tmp_path_factory: pytest.TempPathFactory) -> RecordedDemo:
+    """`make demo`'s run, recorded by `contextros record` beside it (rules' topics too)."""
+    pytest.importorskip("contextros_interfaces", reason="run `make ros` to build the interfaces")
+    recording = tmp_path_factory.mktemp("demo") / "demo.mcap"
+    env = ros_environment(DOMAIN_ID)
+    recorder = subprocess.Popen(
+        [sys.executable, "-m", "contextros", "record", str(recording), "--rules", str(RULES)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
         text=True,
-        timeout=90,
     )
+    try:
+        demo = subprocess.run(
+            [sys.executable, "-m", "examples.demo"],
+            cwd=REPOSITORY,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=90,
+        )
+    finally:
+        recorder.send_signal(signal.SIGINT)
+        try:
+            output, _ = recorder.communicate(timeout=20)
+        except subprocess.TimeoutExpired:
+            recorder.kill()
+            output, _ = recorder.communicate()
+    return RecordedDemo(demo, recording, output)
+
+
+@pytest.mark.ros
+def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(
+    recorded_demo: RecordedDemo,
+) -> None:
+    """One manager switches the C++ localization node and the Python cleaning node."""
+    demo = recorded_demo.demo
     assert demo.returncode == 0, demo.stdout + demo.stderr
     out = demo.stdout
     # The manager's rule (location.layers: `rule GpsFix: ...`) decides, from the GPS.
@@ -85,3 +124,44 @@ def test_the_demo_switches_indoor_outdoor_indoor_and_every_node_follows(domain_i
     assert "cleaning (Python)      wiping -> vacuuming -> wiping" in summary
     assert summary.count("applied after publication: localization (C++) ") == 3, summary
     assert "demo complete" in out
+
+
+@pytest.mark.ros
+def test_a_replay_of_the_recorded_demo_makes_the_switches_the_manager_made(
+    recorded_demo: RecordedDemo, tmp_path: Path
+) -> None:
+    assert recorded_demo.demo.returncode == 0, recorded_demo.demo.stdout
+    assert "recorded " in recorded_demo.recorder_output, recorded_demo.recorder_output
+    plot = tmp_path / "timeline.png"
+    replay = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contextros",
+            "rules",
+            "replay",
+            str(recorded_demo.recording),
+            "--rules",
+            str(RULES),
+            "--json",
+            "--plot",
+            str(plot),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert replay.returncode == 0, replay.stderr
+    result = json.loads(replay.stdout)
+    live = [(s["active"], s["requester"], s["time"]) for s in result["recorded"]]
+    replayed = [(s["active"], s["requester"], s["time"]) for s in result["switches"]]
+    assert [(a, who) for a, who, _ in live] == [
+        (["Indoor"], "rule GpsFix"),
+        (["Outdoor"], "rule GpsFix"),
+        (["Indoor"], "rule GpsFix"),
+    ], result
+    assert [(a, who) for a, who, _ in replayed] == [(a, who) for a, who, _ in live], result
+    for (_, _, live_at), (_, _, replayed_at) in zip(live, replayed, strict=True):
+        # Live, the manager's timer has its own phase and the state travels to the recorder.
+        assert abs(live_at - replayed_at) < 0.15, result
+    assert plot.stat().st_size > 10_000 and plot.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

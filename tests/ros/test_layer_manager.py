@@ -91,6 +91,9 @@ def test_late_joiner_gets_the_current_state_at_once(
 ) -> None:
     current = client.query()
     late = processes.participant("p4")
+    # Starting a process (Python, rclpy) takes seconds when the machine is loaded; the
+    # state then comes at once (transient local), without a new one being published.
+    late.wait_for(lambda events: any(e["event"] == "ready" for e in events), 30, "ready")
     applied = late.wait_applied(current.epoch, timeout=5)
     assert applied["active"] == list(current.active_layers)
     registry = wait_registry(client, lambda r: "/p4" in {p.node for p in r.participants})

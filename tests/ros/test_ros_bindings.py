@@ -4,6 +4,7 @@ when a node rejects a parameter or a transition fails."""
 
 from __future__ import annotations
 
+import json
 import signal
 import time
 from collections.abc import Iterator
@@ -22,6 +23,7 @@ from contextros.ros import LayerClient
 from contextros.ros.messages import result_from_response
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, settle, wait_registry
+from tests.ros.test_cli import contextros
 
 LAYERS = """\
 parameter Slow: base max_speed = 0.3
@@ -84,6 +86,30 @@ def test_a_layer_sets_a_parameter_and_restores_it(
     result = client.request((), ["Slow"], synchronous=True, timeout=5)
     assert result.success, result.message
     assert max_speed(client) == 1.0, "the previous value comes back"
+
+
+def test_status_shows_each_binding_with_its_last_result(
+    system: ProcessGroup, client: LayerClient
+) -> None:
+    settle(client)
+    assert client.request(["Slow"], synchronous=True, timeout=5).success
+    assert not client.request(["Fast"], synchronous=True, timeout=5).success
+    assert client.request((), ["Slow"], synchronous=True, timeout=5).success
+    shown = contextros("status", "--json")
+    assert shown.returncode == 0, shown.stderr
+    bindings = {
+        (b["layer"], b["node"], b["parameter"]): b for b in json.loads(shown.stdout)["bindings"]
+    }
+    slow = bindings[("Slow", "/base", "max_speed")]
+    fast = bindings[("Fast", "/base", "max_speed")]
+    # One parameter, two layers: each entry shows the last result on that parameter.
+    assert (slow["kind"], slow["value"], slow["ok"]) == ("parameter", "0.3", True)
+    assert slow["last_result"] == "restored to 1" and slow["where"].endswith("robot.layers:1:17")
+    assert fast["last_time"] and fast["last_result"] == slow["last_result"]
+    propeller = bindings[("Outdoor", "/propeller", "")]
+    assert (propeller["kind"], propeller["value"]) == ("lifecycle", "active")
+    text = contextros("status").stdout
+    assert "BINDING" in text and "max_speed = 0.3" in text and "ok: restored to 1" in text
 
 
 def test_a_rejected_parameter_refuses_the_state(system: ProcessGroup, client: LayerClient) -> None:

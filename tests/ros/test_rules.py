@@ -3,6 +3,7 @@ with the rule as their reason, manual commands beside them, field errors before 
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -101,6 +102,38 @@ def test_a_rule_activates_its_layer_with_itself_as_the_reason(
         5,
         "the manager's log of the rule's activation",
     )
+
+
+def test_status_shows_each_rule_s_value_hold_timer_hysteresis_and_last_firing(
+    client: LayerClient, sensors: Sensors
+) -> None:
+    sensors.keep_publishing(lambda: "Night" in active(client), percentage=10.0, fix=-1)
+    sensors.publish(percentage=23.0)  # above 20, within the hysteresis: still low
+
+    def battery_rule() -> dict[str, object]:
+        shown = contextros("status", "--json")
+        assert shown.returncode == 0, shown.stderr
+        rules = {rule["name"]: rule for rule in json.loads(shown.stdout)["rules"]}
+        assert set(rules) == {"Battery", "Place"}
+        return rules["Battery"]
+
+    deadline = time.monotonic() + 10
+    while (rule := battery_rule())["readings"] != ["battery.percentage = 23.0"]:
+        assert time.monotonic() < deadline, rule
+        sensors.publish(percentage=23.0)
+    assert rule["where"] == "robot.layers:2"
+    assert (rule["value"], rule["settled"], rule["relaxed"], rule["hysteresis"]) == (
+        "true",
+        "true",
+        True,
+        5.0,
+    )
+    assert rule["last_firing"] == "activate Night"
+    assert rule["last_outcome"].startswith("epoch "), rule
+    text = contextros("status").stdout
+    assert "Battery: Night while battery.percentage < 20 for 0.2 s hysteresis 5" in text
+    assert "hysteresis 5 engaged" in text
+    assert "Place: Outdoor while gps.status.status >= 0 else Indoor" in text
 
 
 def test_hysteresis_and_a_group_choice(client: LayerClient, sensors: Sensors) -> None:
@@ -214,26 +247,26 @@ def test_a_manual_command_drops_the_refused_firings_older_than_it(client: LayerC
         runner = manager.rules
         assert runner is not None
         sent: list[Firing] = []
-        runner._submit = sent.append  # type: ignore[method-assign]
+        runner.firings._send_command = sent.append
         night = Firing("Dark", ("Night",), (), "light.lux < 10", 0)
 
         def state(epoch: int, requester: str) -> None:
             manager._run([PublishState(LayerState(epoch, ("Day",), requester=requester))])
 
         # Refused, then the operator's state: the refusal is dropped, not retried.
-        runner._fire([night])
+        runner.firings.fire([night])
         runner.refused(night)
         state(1, "operator")
         runner.retry()
         assert sent == [night], "no retry over the operator's state"
         # Refused only after the operator's state came (its command was under way): dropped.
-        runner._fire([night])
+        runner.firings.fire([night])
         state(2, "operator")
         runner.refused(night)
         runner.retry()
         assert sent == [night, night]
         # A state another rule (or the manager's recovery) caused: retried as before.
-        runner._fire([night])
+        runner.firings.fire([night])
         runner.refused(night)
         state(3, "manager")
         runner.retry()

@@ -139,3 +139,39 @@ def test_a_rule_whose_evaluation_raises_is_turned_off_and_the_others_run() -> No
     rules.failures.clear()
     assert rules.on_message("battery", battery(10), 1.0) == [], "the broken rule stays off"
     assert rules.failures == [], "reported once"
+
+
+def test_a_report_shows_value_hold_timer_readings_and_hysteresis() -> None:
+    rules = engine(("Battery", "LowBattery while battery.percentage < 20 for 2 s hysteresis 5"))
+    (report,) = rules.report(0.0)
+    assert (report.value, report.value_text, report.settled) == (None, "no data", None)
+    assert report.readings == (("battery.percentage", "no message yet"),)
+
+    rules.on_message("battery", battery(50.0), 0.0)
+    rules.tick(2.5)  # false settles after its hold time
+    rules.on_message("battery", battery(18.0), 3.0)
+    (report,) = rules.report(3.5)
+    assert (report.value, report.settled, report.holding) == (True, False, True)
+    assert report.hold_left == pytest.approx(1.5)
+    assert not report.relaxed
+    assert report.readings == (("battery.percentage", "18.0"),)
+
+    assert [f.activate for f in rules.tick(5.0)] == [("LowBattery",)]
+    rules.on_message("battery", battery(22.0), 5.1)  # above 20, below 20 + 5: still true
+    (report,) = rules.report(5.2)
+    assert (report.value, report.settled, report.holding, report.relaxed) == (
+        True,
+        True,
+        False,
+        True,
+    )
+    assert (report.hold, report.hysteresis, report.error) == (2.0, 5.0, None)
+
+
+def test_a_report_names_why_a_rule_is_off() -> None:
+    rules = engine(("Battery", "LowBattery while battery.percentage < 20"))
+    rules.on_message("battery", SimpleNamespace(), 0.0)  # a message without the field
+    (report,) = rules.report(0.1)
+    assert report.value_text == "off"
+    assert report.error is not None and "percentage" in report.error
+    assert report.readings[0][1] == "unreadable (AttributeError)"

@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 
 from contextros.language.diagnostics import LayerSyntaxError
+from contextros.language.flavours import parse_with_diagnostics
 from contextros.rules import Rule, RuleSet
 
 KINDS = {
@@ -128,3 +129,68 @@ def test_a_rules_file_with_a_byte_order_mark(tmp_path: Path) -> None:
     path = tmp_path / "robot.layers"
     path.write_text("\ufeffrule A: X while a.b > 1\n", encoding="utf-8")
     assert [rule.name for rule in RuleSet.from_files([path]).rules] == ["A"]
+
+
+# -- `topic` declarations ------------------------------------------------------------------
+
+
+def test_declarations_of_several_files_are_merged_and_must_agree(tmp_path: Path) -> None:
+    sensors = tmp_path / "sensors.layers"
+    sensors.write_text("topic battery: sensor_msgs/msg/BatteryState\n", encoding="utf-8")
+    robot = tmp_path / "robot.layers"
+    robot.write_text("rule Low: Night while battery.percentage < 20\n", encoding="utf-8")
+    rules = RuleSet.from_files([sensors, robot])
+    assert rules.topic_types["battery"].type_name == "sensor_msgs/msg/BatteryState"
+    other = tmp_path / "other.layers"
+    other.write_text("\n\ntopic battery: std_msgs/msg/Float32\n", encoding="utf-8")
+    with pytest.raises(LayerSyntaxError) as raised:
+        RuleSet.from_files([sensors, robot, other])
+    assert str(raised.value).startswith(
+        f"{other}:3:16: error: topic 'battery' is already declared as "
+        "sensor_msgs/msg/BatteryState at sensors.layers:1: a topic has one message type"
+    )
+
+
+def test_offline_fields_of_two_declared_topics_are_compared_like_at_run_time(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "robot.layers"
+    path.write_text(
+        "topic battery: sensor_msgs/msg/BatteryState\n"
+        "topic gps: sensor_msgs/msg/NavSatFix\n"
+        "rule Odd: Night while gps.status.status == battery.location\n",
+        encoding="utf-8",
+    )
+    rules = RuleSet.from_files([path])
+    types = {
+        "sensor_msgs/msg/BatteryState": {("location",): "string"},
+        "sensor_msgs/msg/NavSatFix": {("status", "status"): "number", ("status",): "message"},
+    }
+    found = rules.check_declared_fields(lambda name: types[name].get)
+    assert [d.render().splitlines()[0] for d in found] == [
+        f"{path}:3:44: error: 'gps.status.status' (a number field of sensor_msgs/msg/NavSatFix) "
+        "cannot be compared with 'battery.location' (a string field of "
+        "sensor_msgs/msg/BatteryState)"
+    ]
+
+
+def test_a_type_other_than_the_declared_one_names_both_and_the_declaration() -> None:
+    rules = RuleSet.from_rules([Rule("Low", "Night while battery.percentage < 20")])
+    assert rules.type_mismatch("battery", "/battery", "std_msgs/msg/Float32") is None, "undeclared"
+    declared = RuleSet(
+        rules.rules,
+        {"robot.layers": "topic battery: sensor_msgs/msg/BatteryState\n"},
+        parse_with_diagnostics("topic battery: sensor_msgs/msg/BatteryState\n", "robot.layers")[
+            0
+        ].topics,
+    )
+    assert declared.type_mismatch("battery", "/r/battery", "sensor_msgs/msg/BatteryState") is None
+    mismatch = declared.type_mismatch("battery", "/r/battery", "std_msgs/msg/Float32")
+    assert mismatch is not None and mismatch.is_error
+    assert mismatch.render().splitlines() == [
+        "robot.layers:1:16: error: topic /r/battery is published as std_msgs/msg/Float32, but "
+        "topic 'battery' is declared as sensor_msgs/msg/BatteryState: the rules reading it "
+        "(Low) stay off",
+        "    topic battery: sensor_msgs/msg/BatteryState",
+        "                   ^",
+    ]

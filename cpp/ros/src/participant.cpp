@@ -108,6 +108,7 @@ msg::ParticipantStatus report_to_msg(const ParticipantReport& report) {
   status.vote_manager_id = report.vote_manager_id;
   status.vote_yes = report.vote_yes;
   status.vote_reason = report.vote_reason;
+  status.language = "C++";
   return status;
 }
 

@@ -7,7 +7,7 @@ import sys
 from collections.abc import Sequence
 
 from contextros import __version__
-from contextros.cli import language_commands, ros_commands
+from contextros.cli import language_commands, observe_commands, ros_commands
 from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.cli.ros_commands import USAGE
 from contextros.installation import cmake_package_prefixes, ros_problem
@@ -28,8 +28,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     commands = parser.add_subparsers(dest="command", metavar="COMMAND")
     language_commands.register(commands)
+    observe_commands.register_offline(commands)
     offline = set(commands.choices)
     ros_commands.register(commands)
+    observe_commands.register_ros(commands, ros_commands.add_namespace_option)
     for name in set(commands.choices) - offline:  # checked before they run: see main
         commands.choices[name].set_defaults(needs_ros=True)
     return parser

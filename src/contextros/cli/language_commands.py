@@ -52,8 +52,9 @@ def register(commands: Any) -> None:
     check_parser = commands.add_parser(
         "check",
         help="report errors and layer interaction warnings in .layers files",
-        description="Check layer files. Prints 'file:line:col: error|warning: message' with "
-        "the line and a caret; exits 1 if any file has errors.",
+        description="Check layer files. Prints 'file:line:col: error|warning|note: message' "
+        "with the line and a caret; exits 1 if any file has errors. Rules' fields are checked "
+        "against the message types of their 'topic' declarations, as installed here.",
     )
     check_parser.add_argument(
         "files",
@@ -100,6 +101,10 @@ def _layer_files(names: list[str]) -> list[Path]:
 def run_check(args: argparse.Namespace) -> int:
     from contextros.language.checker import check_file  # imported here: a fast CLI start
 
+    # Rules' fields are checked against the message types their `topic` declarations name,
+    # as installed here (imported only when declared; never rclpy).
+    from contextros.ros.message_types import installed_message_type
+
     errors = 0
     for name in args.files:
         problem = _not_layers(Path(name))
@@ -107,7 +112,7 @@ def run_check(args: argparse.Namespace) -> int:
             print(f"{name}: error: {problem}; nothing checked")
             errors += 1
     for path in _layer_files([n for n in args.files if not _not_layers(Path(n))]):
-        diagnostics = check_file(path, args.language)
+        diagnostics = check_file(path, args.language, installed_message_type)
         if args.activation and not any(d.is_error for d in diagnostics):
             diagnostics += _activation_warnings(path, args.activation, args.language)
         for diagnostic in diagnostics:

@@ -30,11 +30,11 @@ USAGE = 2
 NO_MANAGER = 3
 
 
-class _RosArgumentsError(Exception):
+class RosArgumentsError(Exception):
     """The ROS arguments or the namespace given on the command line are not usable."""
 
 
-def _add_namespace_option(parser: argparse.ArgumentParser) -> None:
+def add_namespace_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--namespace",
         metavar="NS",
@@ -44,18 +44,18 @@ def _add_namespace_option(parser: argparse.ArgumentParser) -> None:
 
 
 @contextmanager
-def _ros(args: argparse.Namespace) -> Iterator[None]:
+def ros_session(args: argparse.Namespace) -> Iterator[None]:
     """rclpy initialised with the command line's ROS arguments and --namespace."""
     import rclpy
 
     namespace = getattr(args, "namespace", None)
     if namespace is not None and (problem := namespace_problem(namespace)):
-        raise _RosArgumentsError(problem)
+        raise RosArgumentsError(problem)
     arguments = rclpy_arguments("contextros", getattr(args, "ros_arguments", []), namespace)
     try:
         rclpy.init(args=arguments)
     except Exception as error:  # rclpy raises its RCLError, not exported as a type
-        raise _RosArgumentsError(
+        raise RosArgumentsError(
             f"invalid ROS arguments {' '.join(arguments[1:])!r}: {error}"
         ) from error
     try:
@@ -64,7 +64,7 @@ def _ros(args: argparse.Namespace) -> Iterator[None]:
         rclpy.try_shutdown()
 
 
-def _usage_error(error: _RosArgumentsError) -> int:
+def usage_error(error: RosArgumentsError) -> int:
     print(f"contextros: {error}", file=sys.stderr)
     return USAGE
 
@@ -119,7 +119,7 @@ def register(commands: Any) -> None:
         help="run the context rules (docs/rules.md) and apply the parameter and lifecycle "
         "declarations (docs/ros-integration.md) of these layer files",
     )
-    _add_namespace_option(manager)
+    add_namespace_option(manager)
     manager.set_defaults(run=run_manager)
 
     activate = commands.add_parser("activate", help="activate layers on every context node")
@@ -155,7 +155,7 @@ def register(commands: Any) -> None:
     )
     watch.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
     watch.add_argument("--json", action="store_true", help="one JSON object per line")
-    _add_namespace_option(watch)
+    add_namespace_option(watch)
     watch.set_defaults(run=run_watch)
 
 
@@ -167,7 +167,7 @@ def _add_connection_options(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="how long to look for the manager (default 5 s)",
     )
-    _add_namespace_option(parser)
+    add_namespace_option(parser)
 
 
 def _add_command_options(parser: argparse.ArgumentParser) -> None:
@@ -251,7 +251,7 @@ def run_manager(args: argparse.Namespace) -> int:
             print(f"contextros manager: the layer files have errors:\n{error}", file=sys.stderr)
             return USAGE
     try:
-        with _ros(args):
+        with ros_session(args):
             try:
                 node = LayerManagerNode(
                     settings=settings, state_file=args.state_file, rules=rules, bindings=bindings
@@ -260,8 +260,8 @@ def run_manager(args: argparse.Namespace) -> int:
                 print(f"contextros manager: {error}", file=sys.stderr)
                 return FAILED
             spin_nodes([node], lean=True)
-    except _RosArgumentsError as error:
-        return _usage_error(error)
+    except RosArgumentsError as error:
+        return usage_error(error)
     return 0
 
 
@@ -276,7 +276,7 @@ def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
 
     from contextros.ros import LayerClient
 
-    with _ros(args):
+    with ros_session(args):
         node = Node(f"contextros_{purpose}_{os.getpid()}")
         try:
             yield LayerClient(node)
@@ -315,8 +315,8 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
             except LayerError as error:
                 print(f"contextros: {error}", file=sys.stderr)
                 return FAILED
-    except _RosArgumentsError as error:
-        return _usage_error(error)
+    except RosArgumentsError as error:
+        return usage_error(error)
     moved = _reordered(on, result.active, result.message)
     if moved and result.success:
         print(
@@ -355,6 +355,8 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
 
 
 def run_status(args: argparse.Namespace) -> int:
+    from contextros.ros.messages import registry_to_dict
+
     try:
         with _client(args, "status") as client:
             try:
@@ -363,64 +365,13 @@ def run_status(args: argparse.Namespace) -> int:
             except LayerError as error:
                 print(f"contextros: {error}", file=sys.stderr)
                 return NO_MANAGER
-    except _RosArgumentsError as error:
-        return _usage_error(error)
+    except RosArgumentsError as error:
+        return usage_error(error)
     if args.json:
-        print(json.dumps(_registry_as_dict(registry), indent=2))
+        print(json.dumps(registry_to_dict(registry), indent=2))
     else:
         print(_registry_as_text(registry))
     return 0
-
-
-def _registry_as_dict(registry: Any) -> dict[str, Any]:
-    return {
-        "epoch": registry.epoch,
-        "active": list(registry.active_layers),
-        "requester": registry.requester,
-        "reason": registry.reason,
-        "manager_id": registry.manager_id,
-        "layers": [
-            {
-                "name": layer.name,
-                "group": layer.group,
-                "excludes": list(layer.excludes),
-                "requires": list(layer.required),
-                "after": list(layer.after),
-                "implemented_by": [n for n in nodes.split(",") if n],
-            }
-            for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
-        ],
-        "participants": [
-            {
-                "node": p.node,
-                "layers": list(p.layers),
-                "applied_epoch": p.applied_epoch,
-                "in_critical_section": p.in_critical_section,
-                "silent_for": round(p.silent_for, 3),
-                "lagging": p.lagging,
-                "hosted_nodes": list(p.hosted_nodes),
-                "incarnation": p.incarnation,
-                "conflict": p.conflict,
-            }
-            for p in registry.participants
-        ],
-        "conflicts": list(registry.conflicts),
-        "dropped": list(registry.dropped),
-        "recovering": registry.recovering,
-        "declared_order": _declared_order(registry),
-    }
-
-
-def _declared_order(registry: Any) -> list[str]:
-    """The `after` declarations among the active layers: the manager composed them so."""
-    active = list(registry.active_layers)
-    return [
-        f"{layer.name} after {earlier}"
-        for layer in registry.layers
-        if layer.name in active
-        for earlier in layer.after
-        if earlier in active
-    ]
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -433,7 +384,9 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def _registry_as_text(registry: Any) -> str:
-    data = _registry_as_dict(registry)
+    from contextros.ros.messages import registry_to_dict
+
+    data = registry_to_dict(registry)
     active = ", ".join(data["active"]) or "none"
     by = f"{data['requester'] or '?'}: {data['reason'] or '-'}"
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]
@@ -482,15 +435,56 @@ def _registry_as_text(registry: Any) -> str:
         ]
     if data["dropped"]:
         parts += ["", f"dropped: {', '.join(data['dropped'])}"]
+    if data["rules"]:
+        parts += [
+            "",
+            _table(["RULE", "VALUE", "IN FORCE", "HOLD", "READS", "LAST"], _rule_rows(data)),
+        ]
+    if data["bindings"]:
+        rows = [
+            [
+                b["layer"],
+                b["node"],
+                f"{b['parameter']} = {b['value']}" if b["kind"] == "parameter" else b["value"],
+                ("ok: " if b["ok"] else "FAILED: ") + b["last_result"] if b["last_result"] else "-",
+            ]
+            for b in data["bindings"]
+        ]
+        parts += ["", _table(["BINDING", "NODE", "SETS", "LAST RESULT"], rows)]
     return "\n".join(parts)
+
+
+def _rule_rows(data: dict[str, Any]) -> list[list[str]]:
+    rows = []
+    for rule in data["rules"]:
+        if rule["error"]:
+            hold = f"OFF: {rule['error']}"
+        elif rule["holding"]:
+            hold = f"holding, {rule['hold_left']:.1f} of {rule['hold']:g} s left"
+        elif rule["relaxed"]:
+            hold = f"hysteresis {rule['hysteresis']:g} engaged"
+        else:
+            hold = "armed"
+        last = f"{rule['last_firing']}: {rule['last_outcome']}" if rule["last_firing"] else "-"
+        rows.append(
+            [
+                f"{rule['name']}: {rule['text']}",
+                rule["value"],
+                rule["settled"] or "-",
+                hold,
+                "; ".join(rule["readings"]),
+                last,
+            ]
+        )
+    return rows
 
 
 def run_watch(args: argparse.Namespace) -> int:
     try:
-        with _ros(args):
+        with ros_session(args):
             return _watch(args)
-    except _RosArgumentsError as error:
-        return _usage_error(error)
+    except RosArgumentsError as error:
+        return usage_error(error)
 
 
 def _watch(args: argparse.Namespace) -> int:

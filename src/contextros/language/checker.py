@@ -13,6 +13,7 @@ from collections.abc import Iterable, Sequence
 from itertools import combinations
 from pathlib import Path
 from types import MethodDescriptorType, WrapperDescriptorType
+from typing import TYPE_CHECKING
 
 from contextros.language.bindings import ParameterValue
 from contextros.language.diagnostics import (
@@ -24,6 +25,9 @@ from contextros.language.diagnostics import (
 from contextros.language.flavours import parse_with_diagnostics, read_source, unreadable
 from contextros.language.python_syntax import guard_name
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Position, Ref
+
+if TYPE_CHECKING:
+    from contextros.rules.ruleset import MessageTypes
 
 # Names the compiled module defines besides the generated functions and the layers
 # (compiler.py), each with what it is; a layer or a method of that name would replace it.
@@ -66,23 +70,30 @@ _OBJECT_ATTRIBUTES = {
 
 
 def check_source(
-    source: str, path: str = "<layers>", language: str | None = None
+    source: str,
+    path: str = "<layers>",
+    language: str | None = None,
+    message_types: MessageTypes | None = None,
 ) -> list[Diagnostic]:
     """Every diagnostic of a layer file, sorted by position. Never raises them.
 
-    `language` ("python" or "cpp") overrides the flavour the file name implies.
+    `language` ("python" or "cpp") overrides the flavour the file name implies. With
+    `message_types` (a message type's field lookup by name), the rules' fields are checked
+    against their topics' declared types, as the Layer manager checks them at run time.
     """
     layer_file, found = parse_with_diagnostics(source, path, language)
-    return sorted_diagnostics([*found, *check(layer_file)])
+    return sorted_diagnostics([*found, *check(layer_file, message_types)])
 
 
-def check_file(path: str | Path, language: str | None = None) -> list[Diagnostic]:
+def check_file(
+    path: str | Path, language: str | None = None, message_types: MessageTypes | None = None
+) -> list[Diagnostic]:
     """`check_source` for a file on disk (an unreadable file is an error at 1:1)."""
     try:
         source = read_source(path)
     except (OSError, UnicodeDecodeError) as error:
         return unreadable(path, error)
-    return check_source(source, str(path), language)
+    return check_source(source, str(path), language, message_types)
 
 
 def checked(
@@ -97,9 +108,10 @@ def checked(
     return layer_file, diagnostics
 
 
-def check(layer_file: LayerFile) -> list[Diagnostic]:
-    """The semantic checks of a parsed (possibly partial) layer file."""
-    return _Checker(layer_file).run()
+def check(layer_file: LayerFile, message_types: MessageTypes | None = None) -> list[Diagnostic]:
+    """The semantic checks of a parsed (possibly partial) layer file (`message_types`: see
+    `check_source`)."""
+    return _Checker(layer_file, message_types).run()
 
 
 def check_activation_order(
@@ -136,8 +148,9 @@ def check_activation_order(
 
 
 class _Checker:
-    def __init__(self, layer_file: LayerFile) -> None:
+    def __init__(self, layer_file: LayerFile, message_types: MessageTypes | None = None) -> None:
         self.file = layer_file
+        self.message_types = message_types
         self.sink = DiagnosticSink(layer_file.path, layer_file.source)
         self.layers: dict[str, LayerDecl] = {}
         self.group_of: dict[str, str] = {}
@@ -163,7 +176,7 @@ class _Checker:
     # -- context rules (language-neutral) ------------------------------------------------
 
     def _rules(self) -> None:
-        if not self.file.rules:
+        if not self.file.rules and not self.file.topics:
             return
         from contextros.rules.ruleset import RuleSet
 
@@ -185,8 +198,10 @@ class _Checker:
             )
             for name in self.layers
         }
-        rules = RuleSet(self.file.rules, {self.file.path: self.file.source})
+        rules = RuleSet(self.file.rules, {self.file.path: self.file.source}, self.file.topics)
         self.sink.items += rules.check(relations)
+        if self.message_types is not None:
+            self.sink.items += rules.check_declared_fields(self.message_types)
 
     # -- declarations and relations ---------------------------------------------------
 

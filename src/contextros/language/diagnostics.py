@@ -20,6 +20,7 @@ _NEWLINE = re.compile(r"\r\n|\r|\n")
 class Severity(str, enum.Enum):
     ERROR = "error"
     WARNING = "warning"
+    NOTE = "note"  # neither wrong nor suspect: what a check could not do, and why
 
 
 @dataclass(frozen=True)
@@ -45,7 +46,8 @@ class Diagnostic:
         return f"{head}\n    {text}\n    {caret}"
 
     def sort_key(self) -> tuple[str, int, int, int, str]:
-        return (self.path, self.line, self.col, 0 if self.is_error else 1, self.message)
+        rank = list(Severity).index(self.severity)
+        return (self.path, self.line, self.col, rank, self.message)
 
 
 def printable(source_line: str) -> str:
@@ -143,6 +145,9 @@ class DiagnosticSink:
 
     def warning(self, message: str, line: int, col: int) -> None:
         self.add(Severity.WARNING, message, line, col)
+
+    def note(self, message: str, line: int, col: int) -> None:
+        self.add(Severity.NOTE, message, line, col)
 
     @property
     def has_errors(self) -> bool:

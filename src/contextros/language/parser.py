@@ -52,11 +52,11 @@ HOOK_EVENTS = ("activate", "deactivate")
 
 _NAME = r"[^\W\d]\w*"
 # A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`);
-# `rule`, `parameter` and `lifecycle` lines are detected as in every flavour (lines.py).
+# `rule`, `parameter`, `lifecycle` and `topic` lines are detected as in every flavour (lines.py).
 _DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
 # Keywords that may follow a name in a Python expression statement.
 _OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
-_DECLARATION_WORD = re.compile(r"(layer|base|group|rule|parameter|lifecycle)\b")
+_DECLARATION_WORD = re.compile(r"(layer|base|group|rule|parameter|lifecycle|topic)\b")
 _BASE_LINE = re.compile(r"base[ \t]*:[ \t]*(?:#.*)?$")
 _DEF = re.compile(
     rf"(?P<indent>[ \t]*)(?:async[ \t]+)?def[ \t]+"
@@ -288,7 +288,7 @@ class _Parser:
                 1,
             )
             return
-        if word.group() in ("rule", "parameter", "lifecycle"):
+        if word.group() in ("rule", "parameter", "lifecycle", "topic"):
             self._line_declaration(start, end, result)
             return
         tokens = self._tokens(start, stop_at_colon=word.group() != "group")
@@ -396,8 +396,8 @@ class _Parser:
         return layer
 
     def _line_declaration(self, start: int, end: int, result: LayerFile) -> None:
-        """`rule NAME: ...`, `parameter LAYER: ...`, `lifecycle LAYER: ...` on one line; a
-        language-neutral grammar shared with the C++ flavour (contextros.language.lines)."""
+        """`rule NAME: ...`, `parameter LAYER: ...`, `lifecycle LAYER: ...`, `topic NAME: ...`
+        on one line; a language-neutral grammar shared with the C++ flavour (lines.py)."""
         text = self.lines[start]
         word = text.split()[0] if text.split() else "rule"
         parse_line_declaration(text, start + 1, result, self.sink)

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from contextros.language.bindings import LifecycleBinding, ParameterBinding
 from contextros.language.positions import Position, Ref
 from contextros.language.rules import RuleDecl
+from contextros.language.topics import TopicDecl
 
 __all__ = [
     "BaseBlock",
@@ -221,6 +222,9 @@ class LayerFile:
     # see contextros.language.bindings.
     parameters: list[ParameterBinding] = field(default_factory=list)
     lifecycles: list[LifecycleBinding] = field(default_factory=list)
+    # The message types of the rules' topics (`topic NAME: PACKAGE/msg/TYPE`): see
+    # contextros.language.topics.
+    topics: list[TopicDecl] = field(default_factory=list)
 
     def all_functions(self) -> list[Function]:
         found: list[Function] = [f for b in self.bases for f in b.functions]

@@ -13,15 +13,17 @@ switch already did, in reverse order, and names node, parameter or transition an
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from contextros_interfaces.msg import BindingInfo
 from lifecycle_msgs.msg import State, Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
@@ -30,6 +32,7 @@ from rclpy.node import Node
 
 from contextros.bindings import Bindings, LifecycleChange, ParameterChange, Plan, transitions
 from contextros.language.bindings import ParameterValue as Value
+from contextros.ros.messages import seconds_to_stamp
 
 _PRIMARY = {
     State.PRIMARY_STATE_UNCONFIGURED: "unconfigured",
@@ -106,6 +109,8 @@ class BindingDriver:
         self._original_parameters: dict[tuple[str, str], Any] = {}
         self._original_states: dict[str, str] = {}
         self._clients: dict[tuple[str, str], Any] = {}
+        # (node, parameter or "" for lifecycle) -> the last result of applying it.
+        self._results: dict[tuple[str, str], BindingResult] = {}
         self._lock = threading.Lock()
         # Where `applied` and the originals are kept across restarts (next to the state file).
         self.memory = memory
@@ -248,7 +253,8 @@ class BindingDriver:
                 return  # it had no value before: leave the last one
         else:
             target = to_parameter_value(change.value, like=current)
-        self._set(change.node, change.name, target, change.layer)
+        with self._outcome((change.node, change.name), change, shown(target)):
+            self._set(change.node, change.name, target, change.layer)
         undo.append(("parameter", (change.node, change.name, current)))
 
     def _lifecycle(
@@ -269,16 +275,60 @@ class BindingDriver:
         except ValueError as error:
             raise BindingError(f"lifecycle node {change.node}: {error}") from None
         done: list[tuple[int, str]] = []
-        for transition_id, label in path:
-            try:
-                self._change_state(change.node, transition_id, label, change.layer, current)
-            except BindingError:
-                if done:
-                    undo.append(("lifecycle", (change.node, _reverse(done))))
-                raise
-            done.append((transition_id, label))
+        with self._outcome((change.node, ""), change, wanted):
+            for transition_id, label in path:
+                try:
+                    self._change_state(change.node, transition_id, label, change.layer, current)
+                except BindingError:
+                    if done:
+                        undo.append(("lifecycle", (change.node, _reverse(done))))
+                    raise
+                done.append((transition_id, label))
         if done:
             undo.append(("lifecycle", (change.node, _reverse(done))))
+
+    # -- what happened, for `status` and the dashboard -----------------------------------
+
+    @contextlib.contextmanager
+    def _outcome(
+        self, key: tuple[str, str], change: ParameterChange | LifecycleChange, value: str
+    ) -> Iterator[None]:
+        verb = "restored to" if change.restore else "set to"
+        by = f" for {change.layer}" if change.layer else ""
+        try:
+            yield
+        except BindingError as error:
+            self._results[key] = BindingResult(False, str(error), time.time())
+            raise
+        self._results[key] = BindingResult(True, f"{verb} {value}{by}", time.time())
+
+    def infos(self) -> list[Any]:
+        """Every declaration with the last result of applying it (BindingInfo messages)."""
+        results = dict(self._results)
+        declared = [
+            (p.layer.name, "parameter", p.node, p.name, _shown_value(p.value), p.path, p.at)
+            for p in self.bindings.parameters
+        ] + [
+            (c.layer.name, "lifecycle", c.node, "", c.state, c.path, c.at)
+            for c in self.bindings.lifecycles
+        ]
+        infos = []
+        for layer, kind, declared_node, parameter, value, path, at in declared:
+            node = self.resolve(declared_node)
+            info = BindingInfo(
+                layer=layer,
+                kind=kind,
+                node=node,
+                parameter=parameter,
+                value=value,
+                where=f"{path}:{at.line}:{at.col}",
+            )
+            result = results.get((node, parameter))
+            if result is not None:
+                info.ok, info.last_result = result.ok, result.text
+                info.last_time = seconds_to_stamp(result.wall)
+            infos.append(info)
+        return infos
 
     # -- service calls ------------------------------------------------------------------
 
@@ -359,6 +409,17 @@ _FIELDS = {
     ParameterType.PARAMETER_DOUBLE: ("double_value", float),
     ParameterType.PARAMETER_STRING: ("string_value", str),
 }
+
+
+@dataclass(frozen=True)
+class BindingResult:
+    ok: bool
+    text: str
+    wall: float
+
+
+def _shown_value(value: Any) -> str:
+    return ("true" if value else "false") if isinstance(value, bool) else repr(value)
 
 
 def _value_to_json(message: Any) -> dict[str, Any]:

@@ -431,19 +431,27 @@ class LayerManagerNode(Node):
     def _rule_outcome(self, firing: Firing, result: ActivationResult) -> None:
         target = ", ".join(firing.activate) or "without " + ", ".join(firing.deactivate)
         if result.success and result.message.startswith("no change"):
-            self.log.info(f"rule {firing.rule}: {target} already in force (no change)")
+            outcome = "already in force (no change)"
+            self.log.info(f"rule {firing.rule}: {target} {outcome}")
         elif result.success:
+            outcome = (
+                f"epoch {result.epoch}: {len(result.acknowledged)} nodes applied it in "
+                f"{result.elapsed * 1000:.1f} ms"
+            )
             self.log.info(
                 f"rule {firing.rule} switched to {target}: {len(result.acknowledged)} nodes "
                 f"applied it in {result.elapsed * 1000:.1f} ms (epoch {result.epoch}, "
                 f"[{', '.join(result.active)}])"
             )
         else:
+            outcome = f"refused: {result.message} (tried again after the next state)"
             self.log.warning(
                 f"rule {firing.rule} could not switch to {target}: {result.message} "
                 "(tried again after the next state)"
             )
-            if self.rules is not None:
+        if self.rules is not None:
+            self.rules.outcome(firing, outcome)
+            if not result.success:
                 self.rules.refused(firing)
 
     def _flush_logs(self) -> None:
@@ -477,7 +485,12 @@ class LayerManagerNode(Node):
     def _on_query(self, request: Any, response: Any) -> Any:
         del request
         view = self.protocol.registry(time.monotonic())
-        return fill_query_response(response, view, self.manager_id)
+        fill_query_response(response, view, self.manager_id)
+        if self.rules is not None:
+            response.rules = self.rules.infos()
+        if self.bindings is not None:
+            response.bindings = self.bindings.infos()
+        return response
 
     # -- actions ----------------------------------------------------------------------------
 

@@ -91,6 +91,7 @@ def report_to_msg(report: ParticipantReport, wall_time: float) -> Any:
         vote_manager_id=report.vote_manager_id,
         vote_yes=report.vote_yes,
         vote_reason=report.vote_reason,
+        language="Python",
     )
 
 
@@ -204,3 +205,92 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
     response.manager_id = manager_id
     response.recovering = view.recovering
     return response
+
+
+def registry_to_dict(registry: Any) -> dict[str, Any]:
+    """A QueryRegistry answer as plain data (`contextros status --json`, the dashboard)."""
+    return {
+        "epoch": registry.epoch,
+        "active": list(registry.active_layers),
+        "requester": registry.requester,
+        "reason": registry.reason,
+        "manager_id": registry.manager_id,
+        "layers": [
+            {
+                "name": layer.name,
+                "group": layer.group,
+                "excludes": list(layer.excludes),
+                "requires": list(layer.required),
+                "after": list(layer.after),
+                "implemented_by": [n for n in nodes.split(",") if n],
+            }
+            for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
+        ],
+        "participants": [
+            {
+                "node": p.node,
+                "layers": list(p.layers),
+                "applied_epoch": p.applied_epoch,
+                "in_critical_section": p.in_critical_section,
+                "silent_for": round(p.silent_for, 3),
+                "lagging": p.lagging,
+                "hosted_nodes": list(p.hosted_nodes),
+                "incarnation": p.incarnation,
+                "conflict": p.conflict,
+            }
+            for p in registry.participants
+        ],
+        "conflicts": list(registry.conflicts),
+        "dropped": list(registry.dropped),
+        "recovering": registry.recovering,
+        "declared_order": _declared_order(registry),
+        "rules": [
+            {
+                "name": rule.name,
+                "where": rule.where,
+                "text": rule.text,
+                "value": rule.value,
+                "settled": rule.settled,
+                "holding": rule.holding,
+                "hold_left": round(rule.hold_left, 3),
+                "hold": rule.hold,
+                "hysteresis": rule.hysteresis,
+                "relaxed": rule.relaxed,
+                "readings": list(rule.readings),
+                "error": rule.error,
+                "last_firing": rule.last_firing,
+                "last_outcome": rule.last_outcome,
+            }
+            for rule in registry.rules
+        ],
+        "bindings": [
+            {
+                "layer": binding.layer,
+                "kind": binding.kind,
+                "node": binding.node,
+                "parameter": binding.parameter,
+                "value": binding.value,
+                "where": binding.where,
+                "ok": binding.ok,
+                "last_result": binding.last_result,
+                "last_time": (
+                    binding.last_time.sec + binding.last_time.nanosec * 1e-9
+                    if binding.last_result
+                    else None
+                ),
+            }
+            for binding in registry.bindings
+        ],
+    }
+
+
+def _declared_order(registry: Any) -> list[str]:
+    """The `after` declarations among the active layers: the manager composed them so."""
+    active = list(registry.active_layers)
+    return [
+        f"{layer.name} after {earlier}"
+        for layer in registry.layers
+        if layer.name in active
+        for earlier in layer.after
+        if earlier in active
+    ]

@@ -1,96 +1,36 @@
 """Context rules inside the Layer manager: topics bound at run time, firings as commands.
 
 Each topic a rule reads is resolved in the manager's namespace; its message type is taken
-from the ROS graph once a publisher appears, the rules' fields are checked against that type
-(an error names file:line:col and the rule stays off) and only then is the topic subscribed,
-so no message is ever evaluated against a field that does not exist. See docs/rules.md.
+from the ROS graph once a publisher appears (and must be the type a `topic` declaration
+gives, if any), the rules' fields are checked against that type (an error names
+file:line:col and the rule stays off) and only then is the topic subscribed, so no message
+is ever evaluated against a field that does not exist. See docs/rules.md.
 """
 
 from __future__ import annotations
 
-import importlib
-import re
 import time
 from collections.abc import Callable
 from typing import Any
 
+from contextros_interfaces.msg import RuleInfo
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from contextros.language.diagnostics import Diagnostic
 from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
+from contextros.ros.message_types import field_kind, message_class
 from contextros.rules import Firing, RuleEngine, RuleSet
+from contextros.rules.firings import FiringQueue
 from contextros.rules.ruleset import FieldKind
+
+__all__ = ["RULE_QOS", "RuleRunner", "field_kind", "message_class"]
 
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
 RULE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
 )
-_TYPE_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z_][A-Za-z0-9_]*)$")
-_NESTED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z_][A-Za-z0-9_]*)$")
-# A byte (IDL octet) arrives from rclpy as `bytes` of length 1: the engine compares its number.
-# A char (IDL char/wchar) arrives as a one-character `str`.
-_NUMBERS = {
-    "octet",
-    "byte",
-    "float",
-    "double",
-    "long double",
-    "int8",
-    "uint8",
-    "int16",
-    "uint16",
-    "int32",
-    "uint32",
-    "int64",
-    "uint64",
-}
-_CHARACTERS = {"char", "wchar"}
-
-
-def message_class(type_name: str) -> Any:
-    """The Python class of a message type named by the graph ('sensor_msgs/msg/NavSatFix').
-    The name comes from the network: only the `pkg/msg/Name` form is imported, from
-    `pkg.msg`; anything else is a ValueError naming it."""
-    match = _TYPE_NAME.match(type_name)
-    if match is None:
-        raise ValueError(f"{type_name!r} is not a message type name (pkg/msg/Name)")
-    package, name = match.groups()
-    try:
-        module = importlib.import_module(f"{package}.msg")
-    except ImportError as error:
-        raise ValueError(f"message package {package!r} is not installed here: {error}") from error
-    cls = getattr(module, name, None)
-    if cls is None or not hasattr(cls, "get_fields_and_field_types"):
-        raise ValueError(f"{package}.msg has no message type {name!r}")
-    return cls
-
-
-def field_kind(cls: Any, path: tuple[str, ...]) -> FieldKind:
-    """What `path` is in message class `cls`: number, string, bool, message, array or None."""
-    kind: str | None = None
-    for index, name in enumerate(path):
-        fields: dict[str, str] = cls.get_fields_and_field_types()
-        ros_type = fields.get(name)
-        if ros_type is None:
-            return None
-        if ros_type.startswith("sequence<") or "[" in ros_type:
-            kind = "array"
-        elif ros_type == "boolean":
-            kind = "bool"
-        elif ros_type in _NUMBERS:
-            kind = "number"
-        elif ros_type in _CHARACTERS or ros_type.startswith(("string", "wstring")):
-            kind = "string"
-        elif nested := _NESTED.match(ros_type):
-            kind = "message"
-            cls = message_class(f"{nested.group(1)}/msg/{nested.group(2)}")
-        else:
-            kind = "array"  # anything else is not comparable
-        if kind != "message" and index < len(path) - 1:
-            return None  # a plain value has no fields
-    return kind
 
 
 class RuleRunner:
@@ -108,21 +48,22 @@ class RuleRunner:
         self.node = node
         self.rules = rules
         self.engine = RuleEngine(rules)
-        self._submit = submit
-        self._relations = relations
         self._unbound = {topic: node.resolve_topic_name(topic) for topic in self.engine.topics()}
         self._failed: dict[str, str] = {}  # topic -> type it failed with (not retried)
+        self._failed_why: dict[str, str] = {}  # topic -> why its rules are off
         # Topics bound so far: (field lookup, type name), to check fields compared across topics.
         self._known: dict[str, tuple[Callable[[tuple[str, ...]], FieldKind], str]] = {}
         self._subscriptions: list[Any] = []
         self.errors: list[Diagnostic] = []
-        # Firings the manager refused (a relation, say): tried again after each new state
-        # until one succeeds or the rule fires anew (docs/rules.md, "refused firings"), or
-        # a state no rule caused (an operator's command) is published: that one stands.
-        self._refused: dict[str, Firing] = {}
-        self._requesters = {f"rule {rule.name}" for rule in rules.rules} | {RECOVERY_REQUESTER}
-        self._manual_states = 0  # states published that no rule caused, so far
-        self._submitted_at: dict[str, int] = {}  # rule -> _manual_states when it last fired
+        self._rules_by_name = {rule.name: rule for rule in rules.rules}
+        # Overridden, refused and retried firings (docs/rules.md, "refused firings").
+        self.firings = FiringQueue(
+            self._rules_by_name,
+            submit,
+            relations,
+            lambda text: node.get_logger().info(text),
+            automatic_requesters=(RECOVERY_REQUESTER,),
+        )
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
             node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
@@ -148,8 +89,18 @@ class RuleRunner:
         if self._failed.get(topic) != type_name:
             self.node.get_logger().error(f"rules on {topic} stay off: {why}")
             self._failed[topic] = type_name
+            self._failed_why[topic] = why
 
     def _bind(self, topic: str, resolved: str, type_name: str) -> None:
+        mismatch = self.rules.type_mismatch(topic, resolved, type_name)
+        if mismatch is not None:
+            # Not bound: a publisher of the declared type may come instead (checked again).
+            if self._failed.get(topic) != type_name:
+                self.errors.append(mismatch)
+                self.node.get_logger().error(f"rules on {resolved} stay off:\n{mismatch.render()}")
+                self._failed[topic] = type_name
+                self._failed_why[topic] = mismatch.message
+            return
         try:
             cls = message_class(type_name)
         except ValueError as error:
@@ -163,11 +114,15 @@ class RuleRunner:
         if problems:
             self.errors += problems
             self._failed[topic] = type_name
+            self._failed_why[topic] = "; ".join(problem.message for problem in problems)
             del self._unbound[topic]
             for problem in problems:
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{problem.render()}")
             return
         del self._unbound[topic]
+        # Refused earlier (another type): its messages count now.
+        self._failed.pop(topic, None)
+        self._failed_why.pop(topic, None)
         self._known[topic] = (lookup, type_name)
         self._subscriptions.append(
             self.node.create_subscription(
@@ -189,59 +144,48 @@ class RuleRunner:
             for failure in self.engine.failures:
                 self.node.get_logger().error(f"{failure} (a message on {topic})")
             self.engine.failures.clear()
-        self._fire(firings)
+        self.firings.fire(firings)
 
     def tick(self) -> None:
-        self._fire(self.engine.tick(time.monotonic()))
+        self.firings.fire(self.engine.tick(time.monotonic()))
 
     def refused(self, firing: Firing) -> None:
-        """The manager refused `firing`: keep it for the next state (unless newer), unless a
-        manual command set a state since it was submitted (that command stands)."""
-        if self._submitted_at.get(firing.rule, self._manual_states) != self._manual_states:
-            self._dropped(firing)
-            return
-        self._refused.setdefault(firing.rule, firing)
+        self.firings.refused(firing)
 
     def published(self, state: LayerState) -> None:
-        """The manager published `state`. One that no rule and no recovery caused is a manual
-        command: it stands until a rule's condition changes, so the refused firings, older
-        than it, are dropped (docs/rules.md, "manual commands and rules")."""
-        if state.requester in self._requesters:
-            return
-        self._manual_states += 1
-        for firing in self._refused.values():
-            self._dropped(firing)
-        self._refused.clear()
-
-    def _dropped(self, firing: Firing) -> None:
-        self.node.get_logger().info(
-            f"{firing.requester}: its refused firing is dropped, a manual command came after "
-            "it (it acts again when its condition changes)"
-        )
+        self.firings.published(state.requester)
 
     def retry(self) -> None:
-        """A new state: the refused firings may pass now (in file order)."""
-        waiting = sorted(self._refused.values(), key=lambda f: f.priority)
-        self._refused.clear()
-        for firing in waiting:
-            self._send(firing)
+        self.firings.retry()
 
-    def _send(self, firing: Firing) -> None:
-        self._submitted_at[firing.rule] = self._manual_states
-        self._submit(firing)
+    def outcome(self, firing: Firing, text: str) -> None:
+        """What the manager made of `firing` (shown by `status` and the dashboard)."""
+        self.firings.outcome(firing, text)
 
-    def _fire(self, firings: list[Firing]) -> None:
-        if not firings:
-            return
-        if len(firings) > 1:
-            from contextros.rules import resolve
-
-            firings, overridden = resolve(firings, self._relations())
-            for firing in overridden:
-                self.node.get_logger().warning(
-                    f"{firing.requester} ({firing.reason}) overridden by a rule declared "
-                    "before it (contradicting targets)"
+    def infos(self) -> list[Any]:
+        """Every rule's value, hold timer, hysteresis state and last firing (RuleInfo)."""
+        infos = []
+        for report in self.engine.report(time.monotonic()):
+            rule = self._rules_by_name[report.name]
+            off = [self._failed_why[ref.topic] for ref in rule.fields if ref.topic in self._failed]
+            error = report.error or (off[0] if off else "")
+            last_firing, last_outcome = self.firings.last.get(report.name, ("", ""))
+            infos.append(
+                RuleInfo(
+                    name=report.name,
+                    where=report.where,
+                    text=report.text,
+                    value="off" if error else report.value_text,
+                    settled="" if report.settled is None else str(report.settled).lower(),
+                    holding=report.holding,
+                    hold_left=report.hold_left,
+                    hold=report.hold,
+                    hysteresis=report.hysteresis,
+                    relaxed=report.relaxed,
+                    readings=[f"{name} = {value}" for name, value in report.readings],
+                    error=error,
+                    last_firing=last_firing,
+                    last_outcome=last_outcome,
                 )
-        for firing in firings:
-            self._refused.pop(firing.rule, None)  # superseded by the rule's new value
-            self._send(firing)
+            )
+        return infos

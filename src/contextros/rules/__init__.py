@@ -7,7 +7,14 @@ sets and evaluates them (`RuleEngine`); `contextros.ros.rules` binds them to top
 the Layer manager. See docs/rules.md.
 """
 
-from contextros.rules.engine import Firing, RuleEngine, RuleFailed, compile_condition, resolve
+from contextros.rules.engine import (
+    Firing,
+    RuleEngine,
+    RuleFailed,
+    RuleReport,
+    compile_condition,
+    resolve,
+)
 from contextros.rules.ruleset import Rule, RuleSet
 
 __all__ = [
@@ -15,6 +22,7 @@ __all__ = [
     "Rule",
     "RuleEngine",
     "RuleFailed",
+    "RuleReport",
     "RuleSet",
     "compile_condition",
     "resolve",

@@ -46,6 +46,31 @@ class _NoData(Exception):
 
 
 @dataclass(frozen=True)
+class RuleReport:
+    """What one rule is doing now (for `status` and the dashboard): its condition's value on
+    the latest messages, the value in force, the hold timer and the hysteresis state."""
+
+    name: str
+    where: str
+    text: str
+    value: bool | None  # None: a topic it reads has not delivered yet (or the rule is off)
+    settled: bool | None  # the value that lasted its hold time (None: none yet)
+    holding: bool  # a new value waits out the hold time
+    hold_left: float
+    hold: float
+    hysteresis: float
+    relaxed: bool  # the hysteresis thresholds apply now (a 'while' rule that holds)
+    readings: tuple[tuple[str, str], ...]  # (field, its latest value) for each field read
+    error: str | None  # why the rule is off
+
+    @property
+    def value_text(self) -> str:
+        if self.error is not None:
+            return "off"
+        return "no data" if self.value is None else str(self.value).lower()
+
+
+@dataclass(frozen=True)
 class Firing:
     """A rule acting: activate and deactivate these layers, for this reason."""
 
@@ -165,6 +190,41 @@ class _RuleState:
             self.candidate, self.since = value, now
         return self.tick(now)
 
+    def report(self, latest: Latest, now: float) -> RuleReport:
+        relaxed = bool(self.settled) and self.relaxed is not self.strict
+        value: bool | None = None
+        if self.failed is None:
+            try:
+                value = (self.relaxed if self.settled else self.strict)(latest)
+            except _NoData:
+                value = None
+            except Exception:  # the next evaluation reports it, not this look
+                value = None
+        readings = []
+        for ref in {ref.text: ref for ref in self.rule.fields}.values():
+            try:
+                shown = repr(_operand(ref)(latest))
+            except _NoData:
+                shown = "no message yet"
+            except Exception as error:  # a field the message lacks
+                shown = f"unreadable ({type(error).__name__})"
+            readings.append((ref.text, shown))
+        holding = self.candidate is not None
+        return RuleReport(
+            name=self.rule.name,
+            where=self.where,
+            text=self.rule.text,
+            value=value,
+            settled=self.settled,
+            holding=holding,
+            hold_left=max(0.0, self.rule.hold - (now - self.since)) if holding else 0.0,
+            hold=self.rule.hold,
+            hysteresis=self.rule.hysteresis if self.rule.mode == "while" else 0.0,
+            relaxed=relaxed,
+            readings=tuple(readings),
+            error=self.failed,
+        )
+
     def tick(self, now: float) -> Firing | None:
         # (a nanosecond of slack: a clock's float sums must not cost a whole period)
         if self.candidate is None or now - self.since < self.rule.hold - 1e-9:
@@ -222,6 +282,10 @@ class RuleEngine:
             if firing is not None:
                 firings.append(firing)
         return firings
+
+    def report(self, now: float) -> list[RuleReport]:
+        """Every rule's current value, hold timer and hysteresis state, in file order."""
+        return [state.report(self._latest, now) for state in self._states]
 
     def tick(self, now: float) -> list[Firing]:
         """Rules whose condition kept its new value for the hold time, without a message."""

@@ -20,12 +20,17 @@ from contextros.language.rules import (
     RuleDecl,
     parse_rule,
 )
+from contextros.language.topics import TopicDecl
 
 # What a message field is, as far as a condition cares: "number", "string", "bool",
 # "message" (has fields of its own), "array" (not comparable), or None (no such field).
 FieldKind = str | None
 # Looks up the kind of a field path in the message type of one topic.
 FieldLookup = Callable[[tuple[str, ...]], FieldKind]
+# The field lookup of a message type named PACKAGE/msg/NAME; raises ValueError saying why
+# when the type is not available here. The rules never import a message package themselves:
+# the caller passes this in (`contextros check` passes the installed interfaces').
+MessageTypes = Callable[[str], FieldLookup]
 
 
 @dataclass(frozen=True)
@@ -41,9 +46,19 @@ class RuleSet:
     """Parsed rules plus where they came from, so that every later error (a field the topic's
     message type does not have) still points at file:line:col with a caret."""
 
-    def __init__(self, rules: Sequence[RuleDecl], sources: Mapping[str, str]) -> None:
+    def __init__(
+        self,
+        rules: Sequence[RuleDecl],
+        sources: Mapping[str, str],
+        topics: Sequence[TopicDecl] = (),
+    ) -> None:
         self.rules = tuple(rules)
         self._sources = dict(sources)  # path -> text
+        # `topic NAME: TYPE` declarations, in file order (conflicts: see check()).
+        self.declarations = tuple(topics)
+        self.topic_types: dict[str, TopicDecl] = {}
+        for declaration in self.declarations:
+            self.topic_types.setdefault(declaration.topic, declaration)
 
     # -- construction -------------------------------------------------------------------
 
@@ -53,12 +68,14 @@ class RuleSet:
     ) -> RuleSet:
         """The rules of layer files (either flavour); LayerSyntaxError lists every error."""
         rules: list[RuleDecl] = []
+        topics: list[TopicDecl] = []
         sources: dict[str, str] = {}
         parsed, errors = parse_files(paths, language)
         for name, source, layer_file in parsed:
             rules += layer_file.rules
+            topics += layer_file.topics
             sources[name] = source
-        result = cls(rules, sources)
+        result = cls(rules, sources, topics)
         errors += [d for d in result.check() if d.is_error]
         if errors:
             raise LayerSyntaxError(errors)
@@ -88,10 +105,10 @@ class RuleSet:
 
     # -- positions ----------------------------------------------------------------------
 
-    def where(self, rule: RuleDecl) -> str:
+    def where(self, rule: RuleDecl | TopicDecl) -> str:
         return f"{Path(rule.path).name}:{rule.at.line}"
 
-    def sink_for(self, rule: RuleDecl) -> DiagnosticSink:
+    def sink_for(self, rule: RuleDecl | TopicDecl) -> DiagnosticSink:
         return DiagnosticSink(rule.path, self._sources.get(rule.path, ""))
 
     # -- static checks ------------------------------------------------------------------
@@ -120,6 +137,7 @@ class RuleSet:
                 )
                 found += sink.items
             seen.setdefault(rule.name, rule)
+        found += self._check_declarations()
         for index, first in enumerate(self.rules):
             for second in self.rules[index + 1 :]:
                 clash = _contradiction(first, second, relations or {})
@@ -135,6 +153,94 @@ class RuleSet:
                     )
                     found += sink.items
         return found
+
+    def _check_declarations(self) -> list[Diagnostic]:
+        """A topic declared with two types; a declared topic no rule reads (a misspelt name)."""
+        found: list[Diagnostic] = []
+        read = set(self.topics())
+        for declaration in self.declarations:
+            sink = self.sink_for(declaration)
+            first = self.topic_types[declaration.topic]
+            if first.type_name != declaration.type_name:
+                sink.error(
+                    f"topic '{declaration.topic}' is already declared as {first.type_name} at "
+                    f"{self.where(first)}: a topic has one message type",
+                    declaration.type_at.line,
+                    declaration.type_at.col,
+                )
+            elif first is declaration and self.rules and declaration.topic not in read:
+                sink.warning(
+                    f"no rule reads topic '{declaration.topic}' (rules name their topics as "
+                    "declared: 'battery' and '/battery' are different names here)",
+                    declaration.at.line,
+                    declaration.at.col,
+                )
+            found += sink.items
+        return found
+
+    def check_declared_fields(self, message_types: MessageTypes) -> list[Diagnostic]:
+        """The field checks of `check_fields`, offline: each topic's type from its `topic`
+        declaration, its fields from `message_types` (the same lookup the manager uses on
+        the type it sees on the ROS graph, so the same errors, word for word). A rule on a
+        topic not declared, or declared with a type not available here, gets a note: its
+        fields are checked by the manager at run time."""
+        found: list[Diagnostic] = []
+        known: dict[str, tuple[FieldLookup, str]] = {}
+        unknown: dict[str, str] = {}  # topic -> why its fields cannot be checked here
+        for topic in self.topics():
+            declaration = self.topic_types.get(topic)
+            if declaration is None:
+                unknown[topic] = f"it has no declaration ('topic {topic}: PACKAGE/msg/TYPE')"
+                continue
+            try:
+                lookup = message_types(declaration.type_name)
+            except ValueError as error:
+                unknown[topic] = (
+                    f"its declared type {declaration.type_name} ({self.where(declaration)}) "
+                    f"is not available here: {error}"
+                )
+                continue
+            try:
+                found += self.check_fields(topic, lookup, declaration.type_name, known)
+            except ValueError as error:  # a nested type not available here
+                unknown[topic] = (
+                    f"a type inside its declared type {declaration.type_name} is not "
+                    f"available here: {error}"
+                )
+                continue
+            known[topic] = (lookup, declaration.type_name)
+        for rule in self.rules:
+            sink = self.sink_for(rule)
+            first_refs: dict[str, FieldRef] = {}
+            for ref in rule.fields:
+                first_refs.setdefault(ref.topic, ref)
+            for topic, ref in first_refs.items():
+                if topic in unknown:
+                    sink.note(
+                        f"rule {rule.name}'s fields on topic '{topic}' are checked at run time, "
+                        f"when the Layer manager sees the topic's type: {unknown[topic]}",
+                        ref.at.line,
+                        ref.at.col,
+                    )
+            found += sink.items
+        return found
+
+    def type_mismatch(self, topic: str, resolved: str, type_name: str) -> Diagnostic | None:
+        """The error for `topic` published (as `resolved`) with `type_name` while declared
+        with another type, at the declaration's type; None when they agree or it is not
+        declared."""
+        declaration = self.topic_types.get(topic)
+        if declaration is None or declaration.type_name == type_name:
+            return None
+        users = [rule.name for rule in self.rules if any(r.topic == topic for r in rule.fields)]
+        sink = self.sink_for(declaration)
+        sink.error(
+            f"topic {resolved} is published as {type_name}, but topic '{topic}' is declared "
+            f"as {declaration.type_name}: the rules reading it ({', '.join(users)}) stay off",
+            declaration.type_at.line,
+            declaration.type_at.col,
+        )
+        return sink.items[0]
 
     def check_fields(
         self,

@@ -283,7 +283,7 @@ class _Parser:
             header_end=header_end,
         )
         self._header(result)
-        # `rule`, `parameter` and `lifecycle` lines: the shared, language-neutral grammar;
+        # `rule`, `parameter`, `lifecycle` and `topic` lines: the shared, neutral grammar;
         # then blanked out, so the C++ tokens of the rest keep their offsets.
         masked = self._line_declarations(header_end, result)
         text = self.text if masked == self.source else SourceText(masked)
@@ -371,7 +371,7 @@ class _Parser:
 
     def _header_end(self) -> int:
         """Where the first declaration starts: a column-1 `Layer X`, `group X:`, `base [` or a
-        `rule`/`parameter`/`lifecycle` line."""
+        `rule`/`parameter`/`lifecycle`/`topic` line."""
         tree: tree_sitter.Tree | None = None
         for start in self.text.line_starts:
             if not self._declaration_line(start):
@@ -408,8 +408,9 @@ class _Parser:
         return offset
 
     def _line_declarations(self, header_end: int, result: CppLayerFile) -> str:
-        """Hand every column-1 `rule`/`parameter`/`lifecycle` line to the shared parser (without
-        its `//` comment and an optional `;`); return the source with those lines blanked."""
+        """Hand every column-1 `rule`/`parameter`/`lifecycle`/`topic` line to the shared parser
+        (without its `//` comment and an optional `;`); return the source with those lines
+        blanked."""
         masked = self.source
         for number, start in enumerate(self.text.line_starts, start=1):
             if start < header_end or not is_line_declaration(self.source, start):

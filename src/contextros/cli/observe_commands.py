@@ -1,0 +1,376 @@
+"""Seeing and replaying the context: `record`, `rules replay` and `dashboard`."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import os
+import sys
+from pathlib import Path
+from typing import Any
+
+from contextros.errors import LayerError
+
+USAGE = 2
+# The manager's node name (contextros.ros.topics.MANAGER_NODE_NAME, which imports rclpy).
+MANAGER_NODE = "contextros_manager"
+
+
+def register_offline(commands: Any) -> None:
+    """`rules replay`: no ROS needed (the recording is decoded from its own schemas)."""
+    rules = commands.add_parser("rules", help="work with context rules offline")
+    verbs = rules.add_subparsers(dest="rules_command", metavar="VERB", required=True)
+    replay = verbs.add_parser(
+        "replay",
+        help="evaluate rules over a recording (MCAP) as the manager would: every switch, "
+        "with its time and cause, and a PNG timeline",
+    )
+    replay.add_argument("recording", type=Path, metavar="IN.mcap")
+    replay.add_argument(
+        "--rules", nargs="+", required=True, metavar="FILE.layers", help="the rules to try"
+    )
+    replay.add_argument("--plot", type=Path, metavar="OUT.png", help="write the timeline here")
+    replay.add_argument("--json", action="store_true", help="print JSON instead of lines")
+    replay.add_argument(
+        "--namespace",
+        default="/",
+        metavar="NS",
+        help="the manager's namespace in the recording (default /)",
+    )
+    replay.set_defaults(run=run_replay)
+
+
+def register_ros(commands: Any, add_namespace_option: Any) -> None:
+    record = commands.add_parser(
+        "record",
+        help="record the protocol's topics and the rules' input topics to MCAP "
+        "(rosbag2's format: ros2 bag and Foxglove open it)",
+    )
+    record.add_argument("output", type=Path, metavar="OUT.mcap")
+    record.add_argument(
+        "--rules",
+        nargs="+",
+        default=[],
+        metavar="FILE.layers",
+        help="also record the topics these files' rules read",
+    )
+    record.add_argument(
+        "--topic", nargs="+", default=[], metavar="TOPIC", help="also record these topics"
+    )
+    record.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    add_namespace_option(record)
+    record.set_defaults(run=run_record)
+
+    dashboard = commands.add_parser(
+        "dashboard",
+        help="serve a live web page of the context: layers, switches, nodes, rules, bindings",
+    )
+    dashboard.add_argument(
+        "--namespace",
+        dest="robots",
+        nargs="+",
+        default=["/"],
+        metavar="NS",
+        help="the robots' namespaces, one section each (default /)",
+    )
+    dashboard.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="the address to listen on (default 127.0.0.1: this machine only; see "
+        "docs/observability.md before exposing it)",
+    )
+    dashboard.add_argument(
+        "--port", type=int, default=8080, help="the port (default 8080; 0: any free one)"
+    )
+    dashboard.set_defaults(run=run_dashboard)
+
+
+# -- record -----------------------------------------------------------------------------------
+
+
+def run_record(args: argparse.Namespace) -> int:
+    from contextros.cli.ros_commands import RosArgumentsError, ros_session, usage_error
+
+    try:
+        from mcap.writer import Writer  # noqa: F401 - only whether it is there
+    except ImportError as error:
+        return _missing("record", error)
+    topics = _record_topics(args)
+    if topics is None:
+        return USAGE
+    try:
+        with ros_session(args):
+            return _record(args, topics)
+    except RosArgumentsError as error:
+        return usage_error(error)
+
+
+def _record_topics(args: argparse.Namespace) -> dict[str, Any] | None:
+    from contextros.ros.recorder import PROTOCOL_TOPICS
+    from contextros.ros.rules import RULE_QOS
+
+    topics: dict[str, Any] = dict(PROTOCOL_TOPICS)
+    if args.rules:
+        from contextros.rules import RuleSet
+
+        try:
+            rules = RuleSet.from_files(args.rules)
+        except LayerError as error:
+            print(f"contextros record: the layer files have errors:\n{error}", file=sys.stderr)
+            return None
+        for topic in rules.topics():
+            topics.setdefault(_as_manager_topic(topic), RULE_QOS)
+    for topic in args.topic:
+        topics.setdefault(topic, RULE_QOS)
+    return topics
+
+
+def _as_manager_topic(topic: str) -> str:
+    """A rule's topic as the manager resolves it: `~/x` is private to the manager node."""
+    return f"{MANAGER_NODE}/{topic[2:]}" if topic.startswith("~/") else topic
+
+
+def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
+    from rclpy.node import Node
+
+    from contextros.ros import spin_nodes
+    from contextros.ros.recorder import Recorder, TopicNameError
+
+    node = Node(f"contextros_record_{os.getpid()}")
+    try:
+        recorder = Recorder(node, args.output, topics)
+    except TopicNameError as error:
+        print(f"contextros record: {error}", file=sys.stderr)
+        return USAGE
+    except OSError as error:
+        print(f"contextros record: cannot write {args.output}: {error.strerror}", file=sys.stderr)
+        return USAGE
+    print(f"recording to {args.output} (Ctrl-C stops)", file=sys.stderr, flush=True)
+    try:
+        spin_nodes([node], timeout=args.duration)
+    finally:
+        recorder.finish()
+    counts = ", ".join(f"{topic}: {n}" for topic, n in sorted(recorder.counts.items()))
+    print(f"recorded {sum(recorder.counts.values())} messages to {args.output} ({counts})")
+    if recorder.waiting_for:
+        print(f"never seen on the graph: {', '.join(recorder.waiting_for)}", file=sys.stderr)
+    return 0
+
+
+# -- dashboard ------------------------------------------------------------------------------
+
+
+def run_dashboard(args: argparse.Namespace) -> int:
+    from contextros.cli.ros_arguments import namespace_problem
+    from contextros.cli.ros_commands import RosArgumentsError, ros_session, usage_error
+
+    try:
+        import aiohttp  # noqa: F401 - only whether it is there
+    except ImportError as error:
+        return _missing("dashboard", error)
+    for namespace in args.robots:
+        if problem := namespace_problem(namespace):
+            print(f"contextros dashboard: {problem}", file=sys.stderr)
+            return USAGE
+    try:
+        with ros_session(args):
+            return _dashboard(args)
+    except RosArgumentsError as error:
+        return usage_error(error)
+
+
+def _dashboard(args: argparse.Namespace) -> int:
+    import threading
+
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from contextros.dashboard.model import DashboardModel
+    from contextros.dashboard.server import DashboardServer, serve
+    from contextros.ros.dashboard_node import DashboardNode
+
+    model = DashboardModel(args.robots)
+    server = DashboardServer(model)
+    model.on_change = server.notify
+    node = DashboardNode(model, args.robots)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+
+    def spin() -> None:
+        with contextlib.suppress(ExternalShutdownException):
+            executor.spin()
+
+    spinner = threading.Thread(target=spin, name="contextros-dashboard-ros", daemon=True)
+    spinner.start()
+
+    def ready(port: int) -> None:
+        host = f"[{args.host}]" if ":" in args.host else args.host
+        print(f"dashboard on http://{host}:{port}/ (Ctrl-C stops)", flush=True)
+
+    try:
+        serve(server, args.host, args.port, ready)
+    except OSError as error:
+        print(
+            f"contextros dashboard: cannot listen on {args.host}:{args.port}: {error}",
+            file=sys.stderr,
+        )
+        return USAGE
+    finally:
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+    return 0
+
+
+# -- rules replay ---------------------------------------------------------------------------
+
+
+def run_replay(args: argparse.Namespace) -> int:
+    from contextros.cli.ros_arguments import namespace_problem
+    from contextros.recording import RecordingError
+    from contextros.rules import RuleSet
+
+    if problem := namespace_problem(args.namespace):
+        print(f"contextros rules replay: {problem}", file=sys.stderr)
+        return USAGE
+    try:
+        rules = RuleSet.from_files(args.rules)
+    except LayerError as error:
+        print(f"contextros rules replay: the rules have errors:\n{error}", file=sys.stderr)
+        return USAGE
+    try:
+        replayed = _replay(args, rules)
+    except RecordingError as error:
+        print(f"contextros rules replay: {error}", file=sys.stderr)
+        return USAGE
+    if replayed is None:
+        return USAGE
+    result, recorded, start, end = replayed
+    if args.plot:
+        from contextros.recording.timeline import write_timeline
+
+        write_timeline(result, rules, start, end, args.plot)
+    if args.json:
+        print(json.dumps(_replay_json(result, recorded, start), indent=2))
+    else:
+        _print_replay(result, recorded, start, end, args)
+    return 0
+
+
+def _resolve(namespace: str, topic: str) -> str:
+    if topic.startswith("/"):
+        return topic
+    base = namespace.rstrip("/")
+    if topic.startswith("~/"):
+        return f"{base}/{MANAGER_NODE}/{topic[2:]}"
+    return f"{base}/{topic}"
+
+
+def _replay(args: argparse.Namespace, rules: Any) -> Any:
+    from contextros.protocol.manager import RECOVERY_REQUESTER
+    from contextros.recording import read_recording
+    from contextros.rules.replay import (
+        RuleReplay,
+        declaration_from_recorded,
+        declarations_from_files,
+    )
+
+    namespace = args.namespace
+    by_topic = {_resolve(namespace, topic): topic for topic in rules.topics()}
+    state_topic = _resolve(namespace, "contextros/state")
+    status_topic = _resolve(namespace, "contextros/status")
+    notes: list[str] = []
+    # First pass: what the participants declared, the first state, the time span.
+    declarations = declarations_from_files(args.rules)
+    first_state = None
+    start = end = None
+    for item in read_recording(args.recording, note=notes.append):
+        start = item.time if start is None else start
+        end = item.time
+        if item.topic == status_topic:
+            declarations += [declaration_from_recorded(i) for i in item.message.layers]
+        elif item.topic == state_topic and first_state is None:
+            first_state = item.message
+    if start is None or end is None:
+        print(f"contextros rules replay: {args.recording} holds no messages", file=sys.stderr)
+        return None
+    missing = sorted(set(by_topic) - _topics_seen(args.recording))
+    for topic in missing:
+        notes.append(f"no message on {topic} in the recording: the rules reading it never act")
+    active = tuple(first_state.active_layers) if first_state is not None else ()
+    replay = RuleReplay(rules, declarations, start=start, active=active)
+    recorded = []
+    seen_first = False
+    for item in read_recording(args.recording):
+        if item.topic in by_topic:
+            replay.message(item.time, by_topic[item.topic], item.message)
+        elif item.topic == state_topic:
+            state = item.message
+            requester = str(state.requester)
+            if not seen_first:
+                seen_first = True  # the state the recording began in: already in place
+                continue
+            recorded.append((item.time, int(state.epoch), tuple(state.active_layers), requester))
+            if not requester.startswith("rule ") and requester != RECOVERY_REQUESTER:
+                replay.manual(item.time, tuple(state.active_layers), requester, str(state.reason))
+    result = replay.finish(end)
+    result.notes[:0] = notes
+    return result, recorded, start, end
+
+
+def _topics_seen(path: Path) -> set[str]:
+    from contextros.recording import read_recording
+
+    return {item.topic for item in read_recording(path)}
+
+
+def _replay_json(result: Any, recorded: list[Any], start: float) -> dict[str, Any]:
+    return {
+        "switches": [
+            {
+                "time": round(s.time - start, 4),
+                "epoch": s.epoch,
+                "active": list(s.active),
+                "requester": s.requester,
+                "reason": s.reason,
+            }
+            for s in result.switches
+        ],
+        "refusals": [
+            {"time": round(r.time - start, 4), "rule": r.rule, "asked": r.asked, "why": r.message}
+            for r in result.refusals
+        ],
+        "recorded": [
+            {"time": round(t - start, 4), "epoch": e, "active": list(a), "requester": who}
+            for t, e, a, who in recorded
+        ],
+        "notes": result.notes,
+    }
+
+
+def _print_replay(
+    result: Any, recorded: list[Any], start: float, end: float, args: argparse.Namespace
+) -> None:
+    for note in result.notes:
+        print(f"note: {note}", file=sys.stderr)
+    print(f"{args.recording}: {end - start:.1f} s replayed through {', '.join(args.rules)}")
+    events = [
+        (s.time, f"[{', '.join(s.active) or 'none'}]  {s.requester}: {s.reason}")
+        for s in result.switches
+    ]
+    events += [(r.time, f"rule {r.rule} could not {r.asked}: {r.message}") for r in result.refusals]
+    for at, text in sorted(events, key=lambda event: event[0]):
+        print(f"{at - start:9.3f} s  {text}")
+    by_rules = sum(1 for *_, who in recorded if who.startswith("rule "))
+    made = sum(1 for s in result.switches if s.requester.startswith("rule "))
+    print(f"{made} switches by these rules; the recording has {by_rules} made by the live rules")
+    if args.plot:
+        print(f"timeline: {args.plot}")
+
+
+def _missing(command: str, error: ImportError) -> int:
+    print(
+        f"contextros {command}: needs the observability packages ({error.name} is missing): "
+        "pip install 'contextros[observe]'",
+        file=sys.stderr,
+    )
+    return USAGE

@@ -1,0 +1,110 @@
+"""The PNG timeline of a rule replay: each signal a rule reads with its thresholds (and where
+hysteresis moves them), the hold times that ended in a firing, and the active layers."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+
+from contextros.language.rules import BoolOp, Comparison, Condition, FieldRef, Literal, Not
+from contextros.rules.replay import ReplayResult
+from contextros.rules.ruleset import RuleSet
+
+_RELAX = {"<": 1.0, "<=": 1.0, ">": -1.0, ">=": -1.0}
+
+
+def thresholds(rules: RuleSet) -> dict[str, list[tuple[str, float, float]]]:
+    """Per field: (rule, threshold, threshold once the condition holds) of each comparison
+    of the field against a number."""
+    found: dict[str, list[tuple[str, float, float]]] = {}
+    for rule in rules.rules:
+        margin = rule.hysteresis if rule.mode == "while" else 0.0
+        for comparison, sign in _comparisons(rule.condition, 1.0):
+            left, right, op = comparison.left, comparison.right, comparison.op
+            if isinstance(left, FieldRef) and isinstance(right, Literal):
+                field, value = left, right.value
+            elif isinstance(right, FieldRef) and isinstance(left, Literal):
+                field, value = right, left.value
+                op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
+            else:
+                continue
+            if isinstance(value, bool) or not isinstance(value, float | int):
+                continue
+            relaxed = float(value) + _RELAX.get(op, 0.0) * sign * margin
+            found.setdefault(field.text, []).append((rule.name, float(value), relaxed))
+    return found
+
+
+def _comparisons(condition: Condition, sign: float) -> Iterator[tuple[Comparison, float]]:
+    if isinstance(condition, Not):
+        yield from _comparisons(condition.operand, -sign)
+    elif isinstance(condition, BoolOp):
+        for operand in condition.operands:
+            yield from _comparisons(operand, sign)
+    elif condition.right is not None:
+        yield condition, sign
+
+
+def write_timeline(
+    result: ReplayResult, rules: RuleSet, start: float, end: float, path: str | os.PathLike[str]
+) -> None:
+    """Write the plot to `path` (PNG); times in seconds since `start`."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    signals = sorted(result.signals)
+    limits = thresholds(rules)
+    layers = sorted({name for switch in result.switches for name in switch.active})
+    rows = len(signals) + 1
+    figure, axes = plt.subplots(
+        rows, 1, sharex=True, figsize=(10, 2.2 * rows + 0.6), squeeze=False, layout="constrained"
+    )
+    for axis, name in zip(axes[:, 0], signals, strict=False):
+        times = [t - start for t, _ in result.signals[name]]
+        axis.step(times, [v for _, v in result.signals[name]], where="post", color="tab:blue")
+        for rule, threshold, relaxed in limits.get(name, []):
+            axis.axhline(threshold, color="tab:red", linestyle="--", label=f"{rule} threshold")
+            if relaxed != threshold:
+                axis.axhline(
+                    relaxed, color="tab:orange", linestyle=":", label=f"{rule} with hysteresis"
+                )
+        for rule, begin, finish in result.holds:
+            if any(ref.text == name for r in rules.rules if r.name == rule for ref in r.fields):
+                axis.axvspan(begin - start, finish - start, color="tab:green", alpha=0.2)
+        axis.set_ylabel(name, fontsize=8)
+        axis.legend(loc="upper right", fontsize=7)
+    layer_axis = axes[-1, 0]
+    for row, layer in enumerate(layers):
+        spans = _spans(result, layer, end)
+        layer_axis.broken_barh(
+            [(a - start, b - a) for a, b in spans], (row - 0.4, 0.8), color=f"C{row % 10}"
+        )
+    for switch in result.switches:
+        for axis in axes[:, 0]:
+            axis.axvline(switch.time - start, color="grey", linewidth=0.6)
+        label = switch.requester.removeprefix("rule ")
+        layer_axis.annotate(
+            label, (switch.time - start, len(layers) - 0.4), fontsize=7, rotation=90, va="bottom"
+        )
+    layer_axis.set_yticks(range(len(layers)), layers)
+    layer_axis.set_ylim(-0.6, len(layers) + 1.4)
+    layer_axis.set_xlim(0, max(end - start, 1e-3))
+    layer_axis.set_xlabel("seconds since the recording began (grey: switches; green: hold times)")
+    figure.suptitle("contextros rules replay")
+    figure.savefig(path, dpi=100)
+    plt.close(figure)
+
+
+def _spans(result: ReplayResult, layer: str, end: float) -> list[tuple[float, float]]:
+    spans, since = [], None
+    for switch in result.switches:
+        if layer in switch.active and since is None:
+            since = switch.time
+        elif layer not in switch.active and since is not None:
+            spans.append((since, switch.time))
+            since = None
+    if since is not None:
+        spans.append((since, end))
+    return spans

@@ -1,0 +1,154 @@
+"""`contextros record`: the protocol's topics and the rules' input topics into MCAP.
+
+Each topic is subscribed once the ROS graph shows its type, raw (the serialized CDR bytes
+are written as they arrived, as rosbag2 does), with its message definition as a `ros2msg`
+schema, so `ros2 bag`, Foxglove and `contextros rules replay` read the file. Log times are
+the recorder's receive times (wall clock, nanoseconds), as in rosbag2.
+"""
+
+from __future__ import annotations
+
+import time
+from collections import Counter
+from pathlib import Path
+from typing import Any, BinaryIO
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from contextros.recording.definitions import DefinitionError, message_definition
+from contextros.ros.message_types import message_class
+from contextros.ros.topics import (
+    HEARTBEAT_QOS,
+    HEARTBEAT_TOPIC,
+    PROPOSAL_QOS,
+    PROPOSAL_TOPIC,
+    STATE_QOS,
+    STATE_TOPIC,
+    STATUS_QOS,
+    STATUS_TOPIC,
+)
+
+PROTOCOL_TOPICS: dict[str, QoSProfile] = {
+    STATE_TOPIC: STATE_QOS,  # transient local: the current state arrives at once
+    HEARTBEAT_TOPIC: HEARTBEAT_QOS,
+    STATUS_TOPIC: STATUS_QOS,
+    PROPOSAL_TOPIC: PROPOSAL_QOS,
+}
+# Small chunks: a recorder killed without warning loses at most this much.
+CHUNK_SIZE = 64 * 1024
+
+
+class Recorder:
+    """Records `topics` (names relative to `node`'s namespace, or absolute) into `output`."""
+
+    def __init__(
+        self,
+        node: Node,
+        output: Path,
+        topics: dict[str, QoSProfile],
+        *,
+        discovery_period: float = 0.1,
+    ) -> None:
+        from mcap.writer import Writer
+
+        self.node = node
+        self.output = output
+        self._unbound = {_resolved(node, t): qos for t, qos in topics.items()}
+        self._stream: BinaryIO = output.open("wb")
+        self._writer = Writer(self._stream, chunk_size=CHUNK_SIZE, compression=_compression())
+        self._writer.start(profile="ros2", library="contextros record")
+        self._schemas: dict[str, int] = {}
+        self._refused: dict[str, str] = {}  # topic -> the type it was refused with
+        self._subscriptions: list[Any] = []
+        self.counts: Counter[str] = Counter()
+        self._sequence = 0
+        self._finished = False
+        self._discovery = node.create_timer(discovery_period, self._discover)
+        self._discover()
+
+    @property
+    def waiting_for(self) -> list[str]:
+        """Topics not seen on the graph yet."""
+        return sorted(self._unbound)
+
+    def _discover(self) -> None:
+        if not self._unbound:
+            return
+        graph = dict(self.node.get_topic_names_and_types())
+        for topic, qos in list(self._unbound.items()):
+            types = graph.get(topic)
+            if types:
+                self._bind(topic, types, qos)
+
+    def _bind(self, topic: str, types: list[str], qos: QoSProfile) -> None:
+        if len(types) != 1:
+            return self._refuse(topic, ", ".join(types), "it has several types")
+        type_name = types[0]
+        try:
+            cls = message_class(type_name)
+            schema = self._schema(type_name)
+        except (ValueError, DefinitionError) as error:
+            return self._refuse(topic, type_name, str(error))
+        del self._unbound[topic]
+        channel = self._writer.register_channel(topic, "cdr", schema)
+        self._subscriptions.append(
+            self.node.create_subscription(
+                cls, topic, lambda data, c=channel, t=topic: self._write(c, t, data), qos, raw=True
+            )
+        )
+        self.node.get_logger().info(f"recording {topic} ({type_name})")
+        return None
+
+    def _refuse(self, topic: str, type_name: str, why: str) -> None:
+        if self._refused.get(topic) != type_name:
+            self._refused[topic] = type_name
+            self.node.get_logger().error(f"not recording {topic} ({type_name}): {why}")
+
+    def _schema(self, type_name: str) -> int:
+        if type_name not in self._schemas:
+            definition = message_definition(type_name).encode()
+            self._schemas[type_name] = self._writer.register_schema(
+                type_name, "ros2msg", definition
+            )
+        return self._schemas[type_name]
+
+    def _write(self, channel: int, topic: str, data: bytes) -> None:
+        if self._finished:
+            return
+        now = time.time_ns()
+        self._sequence += 1
+        self._writer.add_message(channel, now, data, now, self._sequence)
+        self.counts[topic] += 1
+
+    def finish(self) -> None:
+        """Write the summary and close the file (a file without it is still readable)."""
+        if self._finished:
+            return
+        self._finished = True
+        try:
+            self._writer.finish()  # type: ignore[no-untyped-call]
+        finally:
+            self._stream.close()
+
+
+class TopicNameError(ValueError):
+    """A topic name ROS does not accept."""
+
+
+def _resolved(node: Node, topic: str) -> str:
+    try:
+        return node.resolve_topic_name(topic)
+    except Exception as error:  # rclpy raises its RCLError, not exported as a type
+        reason = str(error).split(", at ")[0].removeprefix("failed to resolve name: ")
+        raise TopicNameError(f"topic {topic!r}: {reason}") from None
+
+
+def _compression() -> Any:
+    from mcap.writer import CompressionType
+
+    try:
+        import zstandard  # noqa: F401 - only whether it is there
+    except ImportError:
+        return CompressionType.NONE
+    return CompressionType.ZSTD
