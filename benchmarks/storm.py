@@ -52,9 +52,10 @@ def client(index: int, count: int) -> None:
     sys.stdin.readline()
     answers: list[dict[str, Any]] = []
     pending: list[tuple[Any, str, bool, float]] = []
-    lost = 0
+    lost: list[dict[str, Any]] = []
     sent = 0
-    while len(answers) + lost < count:
+    started = time.monotonic()
+    while len(answers) + len(lost) < count:
         while sent < count and len(pending) < IN_FLIGHT:
             on, off = ("Indoor", "Outdoor") if (sent + index) % 2 else ("Outdoor", "Indoor")
             synchronous = sent % 2 == 1
@@ -66,7 +67,8 @@ def client(index: int, count: int) -> None:
         for future, on, synchronous, sent_at in pending:
             if not future.done():
                 if time.monotonic() - sent_at > LOST_AFTER:
-                    lost += 1
+                    # Which command and when: a lost answer stalls its client LOST_AFTER s.
+                    lost.append({"sync": synchronous, "sent_at": round(sent_at - started, 3)})
                 else:
                     still.append((future, on, synchronous, sent_at))
                 continue
@@ -83,6 +85,7 @@ def client(index: int, count: int) -> None:
             )
         pending = still
     print(json.dumps(answers), flush=True)
+    print(json.dumps(lost), flush=True)
     node.destroy_node()
     rclpy.try_shutdown()
 
@@ -128,25 +131,28 @@ class _Storm:
                 process.stdin.write("go\n")
                 process.stdin.flush()
             answers: list[dict[str, Any]] = []
+            lost: list[dict[str, Any]] = []
             for process in clients:
                 assert process.stdout is not None
                 answers += json.loads(process.stdout.readline())
                 memory.append(_rss_kib(self.manager.pid))
+                lost += json.loads(process.stdout.readline())
             elapsed = time.perf_counter() - started
         finally:
             for process in clients:
                 process.kill()
                 process.wait()
-        return {"answers": answers, "elapsed": elapsed, "memory": memory}
+        return {"answers": answers, "elapsed": elapsed, "memory": memory, "lost": lost}
 
     def close(self) -> None:
         self.launch.stop_all()
 
 
-def _exactness(answers: list[dict[str, Any]]) -> str:
+def _exactness(answers: list[dict[str, Any]], lost: list[dict[str, Any]]) -> str:
     """ "" if every answer is exact, else what is not."""
     if len(answers) != CLIENTS * COMMANDS:
-        return f"{len(answers)} answers to {CLIENTS * COMMANDS} commands"
+        when = ", ".join(f"{'sync' if c['sync'] else 'async'} at {c['sent_at']} s" for c in lost)
+        return f"{len(answers)} answers to {CLIENTS * COMMANDS} commands (lost: {when})"
     layers_of: dict[int, tuple[str, ...]] = {}
     for answer in answers:
         active = tuple(answer["active"])
@@ -181,7 +187,7 @@ def run() -> list[dict[str, Any]]:
                 "code": label,
                 "commands": len(answers),
                 "per_second": len(answers) / outcome["elapsed"],
-                "exact": _exactness(answers) or "yes",
+                "exact": _exactness(answers, outcome["lost"]) or "yes",
                 "memory_kib": memory,
                 "synchronous": sum(a["sync"] for a in answers),
             }

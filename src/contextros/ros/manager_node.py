@@ -55,6 +55,7 @@ if TYPE_CHECKING:
     from contextros.ros.bindings import BindingDriver
     from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
+    ACTIVATE_QOS,
     ACTIVATE_SERVICE,
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -179,7 +180,9 @@ class LayerManagerNode(Node):
         self._status_subscription = self.create_subscription(
             ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS
         )
-        activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
+        activate = self.create_service(
+            Activate, ACTIVATE_SERVICE, self._on_activate, qos_profile=ACTIVATE_QOS
+        )
         self._responses = _DeferredResponses(
             activate, lambda error: self.log.warning(f"a reply was lost: {error}")
         )
