@@ -183,6 +183,7 @@ def run(
                     "cpu_ms": per_activation * 1e3,
                     "cpu_per_participant_ms": per_activation * 1e3 / count,
                     "idle_cpu": idle[label],
+                    "load": os.getloadavg()[0],
                 }
             )
     return rows
@@ -191,8 +192,8 @@ def run(
 def markdown(rows: list[dict[str, Any]]) -> str:
     lines = [
         "| code | participants | sync activation, median | p90 | manager CPU / activation "
-        "| per participant | target <= 0.1 ms | manager idle CPU |",
-        "|---|---:|---:|---:|---:|---:|---|---:|",
+        "| per participant | target <= 0.1 ms | manager idle CPU | load average |",
+        "|---|---:|---:|---:|---:|---:|---|---:|---:|",
     ]
     for row in rows:
         per = row["cpu_per_participant_ms"]
@@ -205,7 +206,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {row['code']} | {row['participants']} | {row['median_ms']:.1f} ms "
             f"| {row['p90_ms']:.1f} ms | {row['cpu_ms']:.2f} ms | {per:.3f} ms | {verdict} "
-            f"| {row['idle_cpu'] * 100:.1f}% |"
+            f"| {row['idle_cpu'] * 100:.1f}% | {row.get('load', math.nan):.1f} |"
         )
     return "\n".join(lines)
 
