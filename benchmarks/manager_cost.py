@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.activation import NODES_PER_PROCESS, _wait_for_lines
+from benchmarks.code_before import before_environment
 
 NODE_COUNTS = (1, 16, 64)
 ROUNDS = 40
@@ -49,9 +50,7 @@ class _System:
     def __init__(self, label: str, tree: Path | None, count: int) -> None:
         from examples.launch import Launch
 
-        extra = {}
-        if tree is not None:
-            extra["PYTHONPATH"] = os.pathsep.join([str(tree / "src"), str(tree)])
+        extra = before_environment(tree) if tree is not None else {}
         self.label, self.count = label, count
         self.launch = Launch(DOMAINS[label], grace=5.0, extra_env=extra)
         self.manager = self.launch.start_module(

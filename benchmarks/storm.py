@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.activation import _wait_for_lines
+from benchmarks.code_before import before_environment
 
 CLIENTS = 3
 COMMANDS = 600  # per client
@@ -111,9 +112,7 @@ class _Storm:
     def __init__(self, label: str, tree: Path | None) -> None:
         from examples.launch import Launch
 
-        extra = {}
-        if tree is not None:
-            extra["PYTHONPATH"] = os.pathsep.join([str(tree / "src"), str(tree)])
+        extra = before_environment(tree) if tree is not None else {}
         self.label = label
         self.launch = Launch(DOMAINS[label], grace=5.0, extra_env=extra)
         self.manager = self.launch.start_module(
