@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.activation import NODES_PER_PROCESS, _wait_for_lines
+from benchmarks.code_before import before_environment
 
 NODE_COUNTS = (1, 16, 64)
 ROUNDS = 40
@@ -49,9 +50,7 @@ class _System:
     def __init__(self, label: str, tree: Path | None, count: int) -> None:
         from examples.launch import Launch
 
-        extra = {}
-        if tree is not None:
-            extra["PYTHONPATH"] = os.pathsep.join([str(tree / "src"), str(tree)])
+        extra = before_environment(tree) if tree is not None else {}
         self.label, self.count = label, count
         self.launch = Launch(DOMAINS[label], grace=5.0, extra_env=extra)
         self.manager = self.launch.start_module(
@@ -183,6 +182,7 @@ def run(
                     "cpu_ms": per_activation * 1e3,
                     "cpu_per_participant_ms": per_activation * 1e3 / count,
                     "idle_cpu": idle[label],
+                    "load": os.getloadavg()[0],
                 }
             )
     return rows
@@ -191,8 +191,8 @@ def run(
 def markdown(rows: list[dict[str, Any]]) -> str:
     lines = [
         "| code | participants | sync activation, median | p90 | manager CPU / activation "
-        "| per participant | target <= 0.1 ms | manager idle CPU |",
-        "|---|---:|---:|---:|---:|---:|---|---:|",
+        "| per participant | target <= 0.1 ms | manager idle CPU | load average |",
+        "|---|---:|---:|---:|---:|---:|---|---:|---:|",
     ]
     for row in rows:
         per = row["cpu_per_participant_ms"]
@@ -205,7 +205,7 @@ def markdown(rows: list[dict[str, Any]]) -> str:
         lines.append(
             f"| {row['code']} | {row['participants']} | {row['median_ms']:.1f} ms "
             f"| {row['p90_ms']:.1f} ms | {row['cpu_ms']:.2f} ms | {per:.3f} ms | {verdict} "
-            f"| {row['idle_cpu'] * 100:.1f}% |"
+            f"| {row['idle_cpu'] * 100:.1f}% | {row.get('load', math.nan):.1f} |"
         )
     return "\n".join(lines)
 

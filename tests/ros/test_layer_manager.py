@@ -12,6 +12,8 @@ import time
 from collections.abc import Iterator
 
 import pytest
+import rclpy
+from rclpy.node import Node
 
 from contextros.ros import LayerClient
 from tests.ros.processes import CLIENT_SCRIPT, ProcessGroup
@@ -227,3 +229,32 @@ def test_concurrent_synchronous_answers_describe_their_own_epoch(
     assert len(checked) >= len(answers) // 2, "enough answers can be checked"
     wrong = [a for a in checked if a["active"] != applied[a["epoch"]]]
     assert wrong == [], f"{len(wrong)} of {len(checked)} answers show another epoch's layers"
+
+
+def test_a_client_slow_to_take_its_answers_still_gets_each_one(
+    system: RunningSystem, client: LayerClient, processes: ProcessGroup
+) -> None:
+    """Issue 16: a storm from 3 clients lost 3 of 1800 answers. Fast DDS hands every reply
+    of a service to every client's reply reader and filters them by requester only when
+    a client takes one: a client that did not take for a while found its own replies
+    pushed out of that reader's history by other clients' replies (depth 10)."""
+    settle(client, "Indoor")
+    node = Node("slow_client")
+    try:
+        slow = LayerClient(node, requester="slow")
+        slow.wait_for_manager(10.0)
+        # Three answers wait, untaken, while another client gets 40 of its own.
+        on_off = [((), ["Night"]), (["Night"], ()), ((), ["Night"])]
+        futures = [slow.request_async(on, off) for on, off in on_off]
+        busy = processes.start(
+            "client-busy",
+            [str(CLIENT_SCRIPT), "--name", "busy", "--count", "40", "--toggle", "Slow"],
+        )
+        busy.wait_for(lambda events: any(e["event"] == "done" for e in events), 60, "done")
+        deadline = time.monotonic() + 5.0
+        while not all(future.done() for future in futures) and time.monotonic() < deadline:
+            rclpy.spin_once(node, timeout_sec=0.05)
+        answered = [slow.result_of(future).success for future in futures if future.done()]
+        assert answered == [True, True, True]
+    finally:
+        node.destroy_node()

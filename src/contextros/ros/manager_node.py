@@ -22,6 +22,7 @@ from typing import TYPE_CHECKING, Any
 from contextros_interfaces.msg import LayerState as LayerStateMsg
 from contextros_interfaces.msg import ParticipantStatus
 from contextros_interfaces.srv import Activate, QueryRegistry
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 
 from contextros.bindings import Bindings
@@ -55,6 +56,7 @@ if TYPE_CHECKING:
     from contextros.ros.bindings import BindingDriver
     from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
+    ACTIVATE_QOS,
     ACTIVATE_SERVICE,
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -160,6 +162,9 @@ class LayerManagerNode(Node):
         bindings: Bindings | None = None,
         **node_options: Any,
     ) -> None:
+        # Every entity of the node is waited on at every wake-up (a wake-up costs the
+        # manager more CPU than a status: issue 16): it has no parameters to serve.
+        node_options.setdefault("start_parameter_services", False)
         super().__init__(node_name, **node_options)
         self.log = NodeLog(self.get_logger())
         self.manager_id = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
@@ -173,13 +178,28 @@ class LayerManagerNode(Node):
         # Log lines of the activation path wait until its reply is sent (or the next tick):
         # an rclpy log call costs ~0.3 ms, longer than a whole topic round trip.
         self._postponed_logs: list[str] = []
-        self._state_pub = self.create_publisher(LayerStateMsg, STATE_TOPIC, STATE_QOS)
-        self._heartbeat_pub = self.create_publisher(LayerStateMsg, HEARTBEAT_TOPIC, HEARTBEAT_QOS)
-        self._proposal_pub = self.create_publisher(LayerStateMsg, PROPOSAL_TOPIC, PROPOSAL_QOS)
-        self._status_subscription = self.create_subscription(
-            ParticipantStatus, STATUS_TOPIC, self._on_status, STATUS_QOS
+        # No QoS event handlers (rclpy's default: two per publisher and subscription, each
+        # waited on): a node whose QoS does not match is told so on its own side.
+        quiet = PublisherEventCallbacks(use_default_callbacks=False)
+        self._state_pub = self.create_publisher(
+            LayerStateMsg, STATE_TOPIC, STATE_QOS, event_callbacks=quiet
         )
-        activate = self.create_service(Activate, ACTIVATE_SERVICE, self._on_activate)
+        self._heartbeat_pub = self.create_publisher(
+            LayerStateMsg, HEARTBEAT_TOPIC, HEARTBEAT_QOS, event_callbacks=quiet
+        )
+        self._proposal_pub = self.create_publisher(
+            LayerStateMsg, PROPOSAL_TOPIC, PROPOSAL_QOS, event_callbacks=quiet
+        )
+        self._status_subscription = self.create_subscription(
+            ParticipantStatus,
+            STATUS_TOPIC,
+            self._on_status,
+            STATUS_QOS,
+            event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+        )
+        activate = self.create_service(
+            Activate, ACTIVATE_SERVICE, self._on_activate, qos_profile=ACTIVATE_QOS
+        )
         self._responses = _DeferredResponses(
             activate, lambda error: self.log.warning(f"a reply was lost: {error}")
         )
