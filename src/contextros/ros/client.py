@@ -20,7 +20,7 @@ from contextros.protocol import (
 )
 from contextros.protocol.validation import command_problems
 from contextros.ros.messages import command_to_request, result_from_response
-from contextros.ros.topics import ACTIVATE_QOS, ACTIVATE_SERVICE, QUERY_SERVICE
+from contextros.ros.topics import ACTIVATE_QOS, ACTIVATE_SERVICE, QUERY_QOS, QUERY_SERVICE
 
 # How long to wait for an answer beyond the activation's own timeout, and how often to ask.
 # A reply can be lost while the manager's reply writer has not yet matched a new client's
@@ -63,7 +63,7 @@ class LayerClient:
         self._activate: Any = node.create_client(
             Activate, ACTIVATE_SERVICE, qos_profile=ACTIVATE_QOS
         )
-        self._query: Any = node.create_client(QueryRegistry, QUERY_SERVICE)
+        self._query: Any = node.create_client(QueryRegistry, QUERY_SERVICE, qos_profile=QUERY_QOS)
 
     def wait_for_manager(self, timeout: float = 5.0) -> None:
         """Return once the manager's services are discovered and answer this client.

@@ -20,6 +20,7 @@ from contextros.ros.messages import registry_to_dict, report_from_msg, stamp_to_
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
+    QUERY_QOS,
     QUERY_SERVICE,
     STATE_QOS,
     STATE_TOPIC,
@@ -49,7 +50,9 @@ class DashboardNode(Node):
             self.create_subscription(
                 ParticipantStatus, f"{base}/{STATUS_TOPIC}", self._status(namespace), STATUS_QOS
             )
-            client: Any = self.create_client(QueryRegistry, f"{base}/{QUERY_SERVICE}")
+            client: Any = self.create_client(
+                QueryRegistry, f"{base}/{QUERY_SERVICE}", qos_profile=QUERY_QOS
+            )
             self._queries[namespace] = (client, [])
         self.create_timer(query_period, self._query)
 

@@ -63,6 +63,7 @@ from contextros.ros.topics import (
     MANAGER_NODE_NAME,
     PROPOSAL_QOS,
     PROPOSAL_TOPIC,
+    QUERY_QOS,
     QUERY_SERVICE,
     STATE_QOS,
     STATE_TOPIC,
@@ -203,7 +204,7 @@ class LayerManagerNode(Node):
         self._responses = _DeferredResponses(
             activate, lambda error: self.log.warning(f"a reply was lost: {error}")
         )
-        self.create_service(QueryRegistry, QUERY_SERVICE, self._on_query)
+        self.create_service(QueryRegistry, QUERY_SERVICE, self._on_query, qos_profile=QUERY_QOS)
         self.create_timer(tick_period, self._on_tick)
         origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
         self.log.info(f"Layer manager {self.manager_id} recovering from {origin}")

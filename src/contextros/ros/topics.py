@@ -62,3 +62,6 @@ ACTIVATE_QOS = QoSProfile(
     reliability=ReliabilityPolicy.RELIABLE,
     durability=DurabilityPolicy.VOLATILE,
 )
+
+# The query service is polled by `status`, dashboards and scripts at once: the same holds.
+QUERY_QOS = ACTIVATE_QOS
