@@ -4,6 +4,7 @@ layer files only ever raise the language's own errors."""
 
 from __future__ import annotations
 
+import os
 import random
 from pathlib import Path
 
@@ -292,13 +293,17 @@ def _mutations(source: str, rng: random.Random) -> str:
     return "".join(text)
 
 
+# `make test` mutates each fixture 100 times; `make fuzz` 5,000 (CONTEXTROS_FUZZ_EXAMPLES).
+MUTATIONS = int(os.environ.get("CONTEXTROS_FUZZ_EXAMPLES", "100"))
+
+
 @pytest.mark.parametrize(
     "fixture", ["robot.cpp.layers", "paper_listing1.cpp.layers", "guards.cpp.layers"]
 )
 def test_mutated_files_only_raise_the_languages_errors(fixture: str) -> None:
     original = (CPP_FIXTURES / fixture).read_text()
     rng = random.Random(fixture)
-    for _ in range(300):
+    for _ in range(MUTATIONS):
         source = _mutations(original, rng)
         diagnostics = check_source(source, fixture)  # never raises
         try:
