@@ -125,3 +125,23 @@ def test_a_node_that_cannot_apply_a_state_is_named_at_once(
     assert refused.not_acknowledged == ("/stubborn",)
     assert "/stubborn (failed to apply: epoch" in refused.message
     assert "Night cannot be left now" in refused.message
+
+
+def test_a_manager_that_waited_for_a_core_drops_no_node_whose_reports_it_holds(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """On a loaded machine the manager may not run for longer than the liveness bound (1 s
+    here) while its nodes keep reporting: the reports waiting for it count first."""
+    system = start_system(processes, client, ["w1", "w2"])
+    before = list(client.query().dropped)
+    system.manager.signal(signal.SIGSTOP)
+    try:
+        time.sleep(2.5)
+    finally:
+        system.manager.signal(signal.SIGCONT)
+    time.sleep(1.0)
+    registry = client.query()
+    assert list(registry.dropped) == before, "dropped although their reports were waiting"
+    assert {p.node for p in registry.participants} == {"/w1", "/w2"}
+    output = system.manager.output()
+    assert "dropped" not in output.split("recovering from")[-1], output

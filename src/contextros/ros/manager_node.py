@@ -78,6 +78,10 @@ RECONCILE_RETRY = 1.0
 RECONCILE_RETRY_MAX = 30.0
 
 
+# A tick this much later than due means the manager's process did not run meanwhile.
+STALL = 0.5
+
+
 class StateFile:
     """The manager's memory across restarts: the last published state, written atomically
     before it is published, so no epoch is ever handed out twice."""
@@ -205,6 +209,8 @@ class LayerManagerNode(Node):
             activate, lambda error: self.log.warning(f"a reply was lost: {error}")
         )
         self.create_service(QueryRegistry, QUERY_SERVICE, self._on_query, qos_profile=QUERY_QOS)
+        self._tick_period = tick_period
+        self._last_tick = time.monotonic()
         self.create_timer(tick_period, self._on_tick)
         origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
         self.log.info(f"Layer manager {self.manager_id} recovering from {origin}")
@@ -271,7 +277,15 @@ class LayerManagerNode(Node):
             yield taken[0]
 
     def _on_tick(self) -> None:
-        self._run(self.protocol.tick(time.monotonic()))
+        now = time.monotonic()
+        stall, self._last_tick = now - self._last_tick - self._tick_period, now
+        if stall > STALL:  # this process did not run: a loaded machine, SIGSTOP
+            self.protocol.resumed_after(stall)
+            self.log.warning(
+                f"the manager did not run for {stall:.1f} s: that time does not count as "
+                "the nodes' silence"
+            )
+        self._run(self.protocol.tick(now))
         if self.rules is not None:
             self.rules.tick()
             if self._retried_at != self.protocol.state.epoch:

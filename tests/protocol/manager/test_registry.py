@@ -146,3 +146,19 @@ def test_two_live_nodes_sharing_a_name_are_both_tracked_and_neither_acks_for_the
     command(manager, 2, 2.5, activate=("Indoor",), synchronous=True)
     result = replies(manager.receive_status(report("/x", 3, incarnation="2"), 2.6))[2]
     assert result.success and result.acknowledged == ("/x",)
+
+
+def test_time_the_manager_did_not_run_is_nobodys_silence() -> None:
+    """Its process waited 5 s for a core (liveness bound 2 s): the reports sent meanwhile
+    are still on their way in, so nobody is dropped; a node that stays silent afterwards
+    is dropped one bound of the manager's own running time later."""
+    system = System()
+    system.heartbeat_all()
+    system.now += 5.0
+    system.manager.resumed_after(5.0)
+    assert not [a for a in system.advance(0.05) if isinstance(a, ParticipantDropped)]
+    for _ in range(10):  # /a and /b report again, /c does not
+        system.heartbeat_all(except_=("/c",))
+        system.advance(0.25)
+    dropped = [a.node for a in system.log if isinstance(a, ParticipantDropped)]
+    assert dropped == ["/c"]

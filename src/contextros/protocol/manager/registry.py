@@ -195,6 +195,13 @@ class Registry(ManagerBase):
                 )
         return actions
 
+    def resumed_after(self, stall: float) -> None:
+        """The manager did not run for `stall` seconds (its process waited for a core, or
+        was stopped): that time is nobody's silence, as the reports sent meanwhile are still
+        on their way in. Every participant's last report moves forward by it."""
+        for record in self._participants.values():
+            record.last_heard += stall
+
     def _drop_silent(self, now: float) -> list[ManagerAction]:
         """Drop every participant silent for longer than `liveness_timeout`."""
         bound = self.settings.liveness_timeout
