@@ -343,6 +343,7 @@ def _replay_json(result: Any, recorded: list[Any], start: float) -> dict[str, An
             {"time": round(t - start, 4), "epoch": e, "active": list(a), "requester": who}
             for t, e, a, who in recorded
         ],
+        "first_inputs": {topic: round(t - start, 4) for topic, t in result.first_inputs.items()},
         "notes": result.notes,
     }
 

@@ -65,6 +65,8 @@ class ReplayResult:
     signals: dict[str, list[tuple[float, float]]] = field(default_factory=dict)
     # (rule, start, end) of each hold time that ended in a firing.
     holds: list[tuple[str, float, float]] = field(default_factory=list)
+    # Each rule topic's first message in the recording: the rules saw nothing before it.
+    first_inputs: dict[str, float] = field(default_factory=dict)
 
 
 class RuleReplay:
@@ -132,6 +134,7 @@ class RuleReplay:
     def message(self, time: float, topic: str, message: Any) -> None:
         """A message on a rule's topic (the name as the rules write it)."""
         self._advance(time)
+        self.result.first_inputs.setdefault(topic, time)
         self._sample(time, topic, message)
         firings = self.engine.on_message(topic, message, time)
         for failure in self.engine.failures:
