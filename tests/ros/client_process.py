@@ -30,7 +30,7 @@ def main() -> None:
     rclpy.init(args=sys.argv)
     node = Node(args.name)
     client = LayerClient(node, requester=args.name)
-    client.wait_for_manager(10.0)
+    client.wait_for_manager(30.0)  # discovery takes long when the machine is loaded
     alternatives = [name for name in args.layers.split(",") if name]
     for index in range(args.count):
         if alternatives:
