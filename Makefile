@@ -48,7 +48,7 @@ $(VENV)/.stamp-interfaces: $(VENV)/.stamp-buildtools $(shell find interfaces/con
 	  -DPython3_EXECUTABLE=$(abspath $(PY)) >/dev/null
 	$(BUILD_PATH) cmake --build $(WHEEL_BUILD) --target interfaces
 	cmake --install $(WHEEL_BUILD)/interfaces --prefix $(abspath $(VENV)) >/dev/null
-	$(BYTECODE) $(VENV)/lib >/dev/null
+	$(BYTECODE) $$($(PY) -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")/contextros_interfaces >/dev/null
 	env -u _ROS_WHEELS_BOOTSTRAP_COMPLETE -u LD_LIBRARY_PATH $(PY) -c \
 	  "from contextros_interfaces.msg import LayerState; LayerState(epoch=1)"
 	touch $@
