@@ -283,9 +283,11 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     declarations = declarations_from_files(args.rules)
     first_state = None
     start = end = None
+    seen: set[str] = set()
     for item in read_recording(args.recording, note=notes.append):
         start = item.time if start is None else start
         end = item.time
+        seen.add(item.topic)
         if item.topic == status_topic:
             declarations += [declaration_from_recorded(i) for i in item.message.layers]
         elif item.topic == state_topic and first_state is None:
@@ -293,7 +295,7 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     if start is None or end is None:
         print(f"contextros rules replay: {args.recording} holds no messages", file=sys.stderr)
         return None
-    missing = sorted(set(by_topic) - _topics_seen(args.recording))
+    missing = sorted(set(by_topic) - seen)
     for topic in missing:
         notes.append(f"no message on {topic} in the recording: the rules reading it never act")
     active = tuple(first_state.active_layers) if first_state is not None else ()
@@ -315,12 +317,6 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     result = replay.finish(end)
     result.notes[:0] = notes
     return result, recorded, start, end
-
-
-def _topics_seen(path: Path) -> set[str]:
-    from contextros.recording import read_recording
-
-    return {item.topic for item in read_recording(path)}
 
 
 def _replay_json(result: Any, recorded: list[Any], start: float) -> dict[str, Any]:
