@@ -83,22 +83,28 @@ def build() -> Path:
 STACK_OFFSETS = range(0, 64, 8)
 
 
+def measure(executable: Path, offset: int, runs: dict[str, list[tuple[float, float]]]) -> None:
+    """One run of the benchmark program with the stack moved by `offset` bytes: each case's
+    (ns per call, ratio to the plain call) appended to `runs`."""
+    environment = {**os.environ, "CONTEXTROS_BENCH_PAD": "x" * offset}
+    output = subprocess.run(
+        [str(executable), "200000", "101"],
+        check=True,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=environment,
+    ).stdout
+    for line in output.strip().splitlines():
+        case, ns, ratio = line.split("\t")
+        runs.setdefault(case, []).append((float(ns), float(ratio)))
+
+
 def run() -> list[dict[str, Any]]:
     executable = build()
     runs: dict[str, list[tuple[float, float]]] = {}
     for offset in STACK_OFFSETS:
-        environment = {**os.environ, "CONTEXTROS_BENCH_PAD": "x" * offset}
-        output = subprocess.run(
-            [str(executable), "200000", "101"],
-            check=True,
-            capture_output=True,
-            text=True,
-            timeout=600,
-            env=environment,
-        ).stdout
-        for line in output.strip().splitlines():
-            case, ns, ratio = line.split("\t")
-            runs.setdefault(case, []).append((float(ns), float(ratio)))
+        measure(executable, offset, runs)
     rows: list[dict[str, Any]] = []
     plain = min(ns for ns, _ in runs[PLAIN])
     for case, results in runs.items():

@@ -23,7 +23,7 @@ import tempfile
 from io import BytesIO
 from pathlib import Path
 
-from benchmarks.cpp_dispatch import EXECUTABLE, ROOT, STACK_OFFSETS, _tool, splice
+from benchmarks.cpp_dispatch import EXECUTABLE, ROOT, STACK_OFFSETS, _tool, measure, splice
 
 TITLE = "C++ dispatch before and after issue 18 (one run, two builds)"
 CASES = [
@@ -82,18 +82,7 @@ def run(revision: str = "main") -> dict[str, dict[str, list[tuple[float, float]]
             executables[name] = _build(Path(work) / name, Path(work) / f"build-{name}")
         for offset in STACK_OFFSETS:
             for name in ("before", "after"):
-                environment = {**os.environ, "CONTEXTROS_BENCH_PAD": "x" * offset}
-                output = subprocess.run(
-                    [str(executables[name]), "200000", "101"],
-                    check=True,
-                    capture_output=True,
-                    text=True,
-                    timeout=600,
-                    env=environment,
-                ).stdout
-                for line in output.strip().splitlines():
-                    case, ns, ratio = line.split("\t")
-                    runs[name].setdefault(case, []).append((float(ns), float(ratio)))
+                measure(executables[name], offset, runs[name])
     return runs
 
 

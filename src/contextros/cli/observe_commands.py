@@ -232,6 +232,11 @@ def run_replay(args: argparse.Namespace) -> int:
     if problem := namespace_problem(args.namespace):
         print(f"contextros rules replay: {problem}", file=sys.stderr)
         return USAGE
+    if args.plot:
+        try:
+            import matplotlib  # noqa: F401 - only whether it is there
+        except ImportError as error:
+            return _missing("rules replay --plot", error)
     try:
         rules = RuleSet.from_files(args.rules)
     except LayerError as error:
