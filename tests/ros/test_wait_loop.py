@@ -12,6 +12,7 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 from rclpy.context import Context  # noqa: E402
+from rclpy.exceptions import InvalidHandle  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
@@ -92,3 +93,36 @@ def test_every_request_and_response_waiting_is_served_in_one_wake_up(context: Co
     time.sleep(0.5)
     calling.spin_once(1.0)
     assert [future.done() for future in futures] == [True] * 5
+    serving.shutdown()
+    calling.shutdown()
+
+
+def test_entities_created_or_destroyed_between_wake_ups_are_taken_in_or_let_go(
+    context: Context,
+) -> None:
+    """The loop keeps its wait set while the entities stay the same: a new subscription is
+    served from the next wake-up, and a destroyed one is released there (its handle is
+    destroyed, not held) and never called again."""
+    node = Node("wait_loop_changes", context=context)
+    publisher = node.create_publisher(String, "wait_loop/changes", 10)
+    loop = WaitLoop([node], context=context)
+    loop.spin_once(0.0)  # built without the subscription
+    seen: list[str] = []
+    subscription = node.create_subscription(
+        String, "wait_loop/changes", lambda m: seen.append(m.data), 10
+    )
+    deadline = time.monotonic() + 10.0
+    while not seen and time.monotonic() < deadline:
+        publisher.publish(String(data="first"))
+        loop.spin_once(0.05)
+    assert seen and seen[0] == "first", "a subscription created after the first wake-up"
+    handle = subscription.handle
+    node.destroy_subscription(subscription)
+    publisher.publish(String(data="after"))
+    loop.spin_once(0.2)
+    assert "after" not in seen
+    with pytest.raises(InvalidHandle):  # released by the loop, so destroyed
+        with handle:
+            pass
+    loop.shutdown()
+    node.destroy_node()

@@ -95,12 +95,14 @@ def declaration_problems(declaration: LayerDeclaration) -> list[str]:
     return [p for p in problems if p]
 
 
-def report_problems(report: ParticipantReport, check_layers: bool = True) -> list[str]:
-    """What is wrong with a participant's status (empty: nothing); `check_layers=False`
-    when its declarations were checked already (the same as in its previous status)."""
+def report_problems(
+    report: ParticipantReport, previous: ParticipantReport | None = None
+) -> list[str]:
+    """What is wrong with a participant's status (empty: nothing). `previous`: the same
+    participant's last accepted status (same node and incarnation), whose parts this one
+    repeats unchanged are not checked again (a participant repeats its declarations, and
+    mostly its layers, in every status)."""
     problems = [
-        node_name_problem(report.node),
-        text_problem(report.incarnation, "incarnation", MAX_TOKEN_LENGTH),
         text_problem(report.applied_manager_id, "applied_manager_id", MAX_TOKEN_LENGTH),
         text_problem(report.error, "error"),
         epoch_problem(report.applied_epoch, "applied_epoch"),
@@ -110,17 +112,22 @@ def report_problems(report: ParticipantReport, check_layers: bool = True) -> lis
         text_problem(report.vote_reason, "vote_reason"),
         text_problem(report.vote_manager_id, "vote_manager_id", MAX_TOKEN_LENGTH),
     ]
-    if not report.incarnation:
-        problems.append("incarnation is empty")
+    if previous is None:
+        problems.append(node_name_problem(report.node))
+        problems.append(text_problem(report.incarnation, "incarnation", MAX_TOKEN_LENGTH))
+        if not report.incarnation:
+            problems.append("incarnation is empty")
     if len(report.layers) > MAX_LAYERS:
         problems.append(f"layers lists {len(report.layers)} layers, more than {MAX_LAYERS}")
-    elif check_layers:
+    elif previous is None or report.layers != previous.layers:
         for declaration in report.layers:
             problems += declaration_problems(declaration)
-    problems += _names_problems(report.active, "active_layers", MAX_LAYERS)
-    if len(set(report.active)) != len(report.active):
-        problems.append("active_layers names a layer twice")
-    problems += _names_problems(report.hosted, "hosted_nodes", MAX_HOSTED, node_name_problem)
+    if previous is None or report.active != previous.active:
+        problems += _names_problems(report.active, "active_layers", MAX_LAYERS)
+        if len(set(report.active)) != len(report.active):
+            problems.append("active_layers names a layer twice")
+    if previous is None or report.hosted != previous.hosted:
+        problems += _names_problems(report.hosted, "hosted_nodes", MAX_HOSTED, node_name_problem)
     return [p for p in problems if p]
 
 

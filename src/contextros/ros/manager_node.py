@@ -46,10 +46,10 @@ from contextros.ros.messages import (
     command_from_request,
     fill_query_response,
     fill_response,
-    report_from_msg,
     state_to_msg,
 )
 from contextros.ros.node_log import NodeLog
+from contextros.ros.status_wire import StatusDecoder
 from contextros.rules import Firing, RuleSet
 
 if TYPE_CHECKING:
@@ -201,7 +201,9 @@ class LayerManagerNode(Node):
             self._on_status,
             STATUS_QOS,
             event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            raw=True,  # read by status_wire, not built as a Python message first
         )
+        self._statuses = StatusDecoder()
         activate = self.create_service(
             Activate, ACTIVATE_SERVICE, self._on_activate, qos_profile=ACTIVATE_QOS
         )
@@ -250,14 +252,14 @@ class LayerManagerNode(Node):
 
     # -- executor callbacks -----------------------------------------------------------------
 
-    def _on_status(self, msg: Any) -> None:
+    def _on_status(self, data: bytes) -> None:
         """A status, and every other one already waiting (the participants of a synchronous
         activation answer at once): handled in one go, not one executor wake-up each."""
         now = time.monotonic()
         actions: list[ManagerAction] = []
-        for message in self._waiting_statuses(msg):
+        for message in self._waiting_statuses(data):
             try:
-                report = report_from_msg(message)
+                report = self._statuses.decode(message)
             except (AttributeError, TypeError, ValueError) as error:  # a foreign sender
                 self.log.error(f"ignored an unreadable status message: {error}")
                 continue
@@ -266,12 +268,12 @@ class LayerManagerNode(Node):
         if self._commands and not self._driving:  # an atomic vote or a held layer may be over
             self._next_command()
 
-    def _waiting_statuses(self, first: Any) -> Iterator[Any]:
+    def _waiting_statuses(self, first: bytes) -> Iterator[bytes]:
         yield first
         handle = self._status_subscription.handle
         for _ in range(STATUS_BATCH - 1):
             with handle:
-                taken = handle.take_message(ParticipantStatus, False)
+                taken = handle.take_message(ParticipantStatus, True)
             if taken is None:
                 return
             yield taken[0]

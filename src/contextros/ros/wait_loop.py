@@ -37,44 +37,102 @@ SERVICE_BATCH = 64
 
 
 class WaitLoop:
-    """Spins `nodes`: `spin_once(timeout_sec)` runs what is ready, waiting at most that long."""
+    """Spins `nodes`: `spin_once(timeout_sec)` runs what is ready, waiting at most that long.
+
+    The wait set, and the use of every entity's handle, are kept from one wake-up to the
+    next while the nodes' entities stay the same (most of a wake-up's Python work was
+    building them): an entity destroyed meanwhile is released at the next wake-up, when
+    it is gone from its node, and `shutdown` releases them all."""
 
     def __init__(self, nodes: Sequence[Node], context: Context | None = None) -> None:
         self.nodes = list(nodes)
         self.context = context or get_default_context()
+        self._entities: tuple[tuple[Any, ...], ...] = ()
+        self._held = contextlib.ExitStack()
+        self._wait_set: Any = None
+        # What the wait set waits on, by kind, with the handles still usable.
+        self._timers: list[Any] = []
+        self._subscriptions: list[Any] = []
+        self._guards: list[Any] = []
+        self._clients: list[Any] = []
+        self._services: list[Any] = []
+        self._waitables: list[Any] = []
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
-        subscriptions = [s for node in self.nodes for s in node.subscriptions]
-        timers = [t for node in self.nodes for t in node.timers]
-        clients = [c for node in self.nodes for c in node.clients]
-        services = [s for node in self.nodes for s in node.services]
-        guards = [g for node in self.nodes for g in node.guards]
-        waitables = [w for node in self.nodes for w in node.waitables]
-        with contextlib.ExitStack() as held:
-            entered: dict[str, list[Any]] = {}
-            for kind, entities in (
-                ("subscription", subscriptions),
-                ("timer", timers),
-                ("client", clients),
-                ("service", services),
-                ("guard_condition", guards),
-            ):
-                usable = []
-                for entity in entities:
-                    try:
-                        held.enter_context(entity.handle)
-                    except InvalidHandle:
-                        continue  # destroyed meanwhile
-                    usable.append(entity)
-                entered[kind] = usable
+        entities = tuple(
+            tuple(entity for node in self.nodes for entity in getattr(node, kind))
+            for kind in _KINDS
+        )
+        if entities != self._entities:
+            self._build(entities)
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        for subscription in self._subscriptions:
+            wait_set.add_subscription(subscription.handle)
+        for client in self._clients:
+            wait_set.add_client(client.handle)
+        for service in self._services:
+            wait_set.add_service(service.handle)
+        for timer in self._timers:
+            wait_set.add_timer(timer.handle)
+        for guard in self._guards:
+            wait_set.add_guard_condition(guard.handle)
+        for waitable in self._waitables:
+            waitable.add_to_wait_set(wait_set)
+        wait_set.wait(timeout_sec_to_nsec(timeout_sec))
+        ready_waitables = [w for w in self._waitables if w.is_ready(wait_set)]
+        if self._timers:
+            ready = set(wait_set.get_ready_entities("timer"))
+            for timer in self._timers:
+                if timer.handle.pointer in ready and timer.handle.is_timer_ready():
+                    self._run_timer(timer)
+        if self._subscriptions:
+            ready = set(wait_set.get_ready_entities("subscription"))
+            for subscription in self._subscriptions:
+                if subscription.handle.pointer in ready:
+                    self._run_subscription(subscription)
+        if self._guards:
+            ready = set(wait_set.get_ready_entities("guard_condition"))
+            for guard in self._guards:
+                if guard.handle.pointer in ready and guard.callback:
+                    guard.callback()
+        if self._clients:
+            ready = set(wait_set.get_ready_entities("client"))
+            for client in self._clients:
+                if client.handle.pointer in ready:
+                    self._run_client(client)
+        if self._services:
+            ready = set(wait_set.get_ready_entities("service"))
+            for service in self._services:
+                if service.handle.pointer in ready:
+                    self._run_service(service)
+        for waitable in ready_waitables:
+            _run_to_completion(waitable.execute(waitable.take_data()))
+
+    def shutdown(self, timeout_sec: float | None = None) -> bool:
+        del timeout_sec
+        self.nodes = []
+        self._release()
+        return True
+
+    def _release(self) -> None:
+        """Let go of every handle (what was destroyed meanwhile is destroyed now)."""
+        self._wait_set = None
+        self._held.close()
+        self._entities = ()
+        self._timers, self._subscriptions, self._guards = [], [], []
+        self._clients, self._services, self._waitables = [], [], []
+
+    def _build(self, entities: tuple[tuple[Any, ...], ...]) -> None:
+        self._release()
+        held = contextlib.ExitStack()
+        try:
+            subscriptions, timers, clients, services, guards = (
+                _usable(held, [entity.handle for entity in kind], kind) for kind in entities[:5]
+            )
+            waitables = _usable(held, entities[5], entities[5])  # each holds its handles
             counts = [0, 0, 0, 0, 0, 0]  # subscriptions, guards, timers, clients, services, events
-            live_waitables = []
             for waitable in waitables:
-                try:
-                    held.enter_context(waitable)
-                except InvalidHandle:
-                    continue
-                live_waitables.append(waitable)
                 extra = waitable.get_num_entities()
                 counts[0] += extra.num_subscriptions
                 counts[1] += extra.num_guard_conditions
@@ -86,56 +144,22 @@ class WaitLoop:
             if context is None:
                 raise RuntimeError("the ROS context is shut down")
             held.enter_context(context)
-            wait_set = _rclpy.WaitSet(
-                counts[0] + len(entered["subscription"]),
-                counts[1] + len(entered["guard_condition"]),
-                counts[2] + len(entered["timer"]),
-                counts[3] + len(entered["client"]),
-                counts[4] + len(entered["service"]),
+            self._wait_set = _rclpy.WaitSet(
+                counts[0] + len(subscriptions),
+                counts[1] + len(guards),
+                counts[2] + len(timers),
+                counts[3] + len(clients),
+                counts[4] + len(services),
                 counts[5],
                 context,
             )
-            wait_set.clear_entities()
-            for subscription in entered["subscription"]:
-                wait_set.add_subscription(subscription.handle)
-            for client in entered["client"]:
-                wait_set.add_client(client.handle)
-            for service in entered["service"]:
-                wait_set.add_service(service.handle)
-            for timer in entered["timer"]:
-                wait_set.add_timer(timer.handle)
-            for guard in entered["guard_condition"]:
-                wait_set.add_guard_condition(guard.handle)
-            for waitable in live_waitables:
-                waitable.add_to_wait_set(wait_set)
-            wait_set.wait(timeout_sec_to_nsec(timeout_sec))
-            ready = {
-                kind: set(wait_set.get_ready_entities(kind))
-                for kind in ("subscription", "timer", "client", "service", "guard_condition")
-            }
-            ready_waitables = [w for w in live_waitables if w.is_ready(wait_set)]
-            for timer in entered["timer"]:
-                if timer.handle.pointer in ready["timer"] and timer.handle.is_timer_ready():
-                    self._run_timer(timer)
-            for subscription in entered["subscription"]:
-                if subscription.handle.pointer in ready["subscription"]:
-                    self._run_subscription(subscription)
-            for guard in entered["guard_condition"]:
-                if guard.handle.pointer in ready["guard_condition"] and guard.callback:
-                    guard.callback()
-            for client in entered["client"]:
-                if client.handle.pointer in ready["client"]:
-                    self._run_client(client)
-            for service in entered["service"]:
-                if service.handle.pointer in ready["service"]:
-                    self._run_service(service)
-            for waitable in ready_waitables:
-                _run_to_completion(waitable.execute(waitable.take_data()))
-
-    def shutdown(self, timeout_sec: float | None = None) -> bool:
-        del timeout_sec
-        self.nodes = []
-        return True
+        except BaseException:
+            held.close()
+            raise
+        self._held = held
+        self._entities = entities
+        self._timers, self._subscriptions, self._guards = timers, subscriptions, guards
+        self._clients, self._services, self._waitables = clients, services, waitables
 
     @staticmethod
     def _run_timer(timer: Any) -> None:
@@ -178,6 +202,24 @@ class WaitLoop:
                 return
             response = service.callback(request, service.srv_type.Response())
             service.send_response(response, header)
+
+
+# Node attributes listing each kind of entity, in the order `_build` takes them.
+_KINDS = ("subscriptions", "timers", "clients", "services", "guards", "waitables")
+
+
+def _usable(
+    held: contextlib.ExitStack, handles: Sequence[Any], entities: Sequence[Any]
+) -> list[Any]:
+    """The entities whose handles are still valid, each handle held in use by `held`."""
+    usable = []
+    for handle, entity in zip(handles, entities, strict=True):
+        try:
+            held.enter_context(handle)
+        except InvalidHandle:
+            continue  # destroyed meanwhile
+        usable.append(entity)
+    return usable
 
 
 def _run_to_completion(coroutine: Any) -> None:

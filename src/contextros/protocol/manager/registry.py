@@ -117,13 +117,12 @@ class Registry(ManagerBase):
     # -- validation of statuses -------------------------------------------------------------
 
     def _report_problems(self, report: ParticipantReport) -> list[str]:
-        # A participant repeats its declarations in every status: they are checked when
-        # they change, not at every heartbeat.
+        # A participant repeats its declarations in every status: what it repeats from its
+        # last accepted one is not checked again at every heartbeat.
         known = None
         if isinstance(report.node, str) and isinstance(report.incarnation, str):
             known = self._participants.get((report.node, report.incarnation))
-        unchanged = known is not None and known.report.layers == report.layers
-        problems = report_problems(report, check_layers=not unchanged)
+        problems = report_problems(report, known.report if known is not None else None)
         if problems:
             return problems
         # With no epoch known (no state file, nothing heard yet) only an absolute bound

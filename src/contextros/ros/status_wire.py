@@ -1,0 +1,193 @@
+"""A participant's status read straight from its serialized bytes (the manager's hot path).
+
+The manager takes every status raw and reads it here: rclpy's own take builds a Python
+`ParticipantStatus` (each field through a checking property) that `report_from_msg` then
+copies, about 50 µs a status against 10 µs here; a status whose declarations are the bytes
+seen before reuses their decoded form. The layout is the CDR of `ParticipantStatus.msg`
+(XCDR version 1, little endian, as Fast DDS, Cyclone DDS and Zenoh write it on the
+machines ROS 2 runs on); anything else (big endian, another encapsulation) goes through
+rclpy's deserialization.
+
+The bytes come from the network: every length is checked against what is left, and a
+damaged status raises `ValueError` naming the field, never anything else.
+"""
+
+from __future__ import annotations
+
+import struct
+from contextros.protocol.events import ParticipantReport
+from contextros.protocol.relations import LayerDeclaration
+
+# The encapsulation read here (the first two bytes): plain CDR, little endian.
+_CDR_LE = b"\x00\x01"
+_HEADER = 4
+_U32, _U64 = struct.Struct("<I").unpack_from, struct.Struct("<Q").unpack_from
+# Nodes whose last declarations are kept (participants repeat theirs in every status).
+_DECLARATIONS_CACHE_SIZE = 4096
+# A LayerInfo as read: name, excludes, required, group, after.
+_Entry = tuple[str, tuple[str, ...], tuple[str, ...], str, tuple[str, ...]]
+
+
+class StatusDecoder:
+    """`decode(data)` gives the `ParticipantReport` of a serialized `ParticipantStatus`."""
+
+    def __init__(self) -> None:
+        # Each node's last declarations: their bytes, and what they decoded to.
+        self._last_layers: dict[str, tuple[bytes, tuple[LayerDeclaration, ...]]] = {}
+
+    def decode(self, data: bytes) -> ParticipantReport:
+        if data[:2] != _CDR_LE:
+            return _decoded_by_rclpy(data)
+        u32, u64 = _U32, _U64
+        size = len(data)
+        pos = _HEADER
+        field = ""
+
+        # Each reader moves `pos` on; positions are relative to the payload, as CDR aligns.
+        def count() -> int:
+            nonlocal pos
+            pos += -(pos - _HEADER) & 3
+            if pos + 4 > size:
+                raise ValueError(f"status field {field} runs past the message's end")
+            pos += 4
+            return u32(data, pos - 4)[0]
+
+        def string() -> str:
+            nonlocal pos
+            length = count()
+            start = pos
+            pos += length
+            if pos > size:
+                raise ValueError(f"status field {field} runs past the message's end")
+            if length == 0:  # a writer may send no terminator for an empty string
+                return ""
+            if data[pos - 1] != 0:
+                raise ValueError(f"status field {field} is a string without its terminator")
+            text = data[start : pos - 1]
+            if 0 in text:  # rclpy reads a C string: up to the first NUL
+                text = text[: text.index(0)]
+            return text.decode(errors="replace")  # as rclpy reads it
+
+        def strings() -> tuple[str, ...]:
+            entries = count()
+            if entries * 4 > size - pos:  # each string takes 4 bytes at least
+                raise ValueError(f"status field {field} claims {entries} entries")
+            return tuple([string() for _ in range(entries)])
+
+        def uint64() -> int:
+            nonlocal pos
+            pos += -(pos - _HEADER) & 7
+            if pos + 8 > size:
+                raise ValueError(f"status field {field} runs past the message's end")
+            pos += 8
+            return u64(data, pos - 8)[0]
+
+        def boolean() -> bool:
+            nonlocal pos
+            if pos >= size:
+                raise ValueError(f"status field {field} runs past the message's end")
+            pos += 1
+            return data[pos - 1] != 0
+
+        field = "node"
+        node = string()
+        field = "incarnation"
+        incarnation = string()
+        field = "layers"
+        pos += -(pos - _HEADER) & 3
+        start = pos
+        last = self._last_layers.get(node)
+        if last is not None and data.startswith(last[0], start):
+            # The same bytes as this node's previous status: the same declarations.
+            layers = last[1]
+            pos += len(last[0])
+        else:
+            entries = count()
+            if entries * 20 > size - pos:  # each LayerInfo takes 20 bytes at least
+                raise ValueError(f"status field layers claims {entries} entries")
+            decoded = [
+                (string(), strings(), strings(), string(), strings()) for _ in range(entries)
+            ]
+            layers = self._remember(node, data[start:pos], decoded)
+        field = "applied_epoch"
+        applied_epoch = uint64()
+        field = "applied_manager_id"
+        applied_manager_id = string()
+        field = "active_layers"
+        active = strings()
+        field = "in_critical_section"
+        in_critical_section = boolean()
+        field = "pending_epoch"
+        pending_epoch = uint64()
+        field = "failed_epoch"
+        failed_epoch = uint64()
+        field = "error"
+        error = string()
+        field = "leaving"
+        leaving = boolean()
+        field = "stamp"
+        count()  # sec, then nanosec
+        count()
+        field = "hosted_nodes"
+        hosted = strings()
+        field = "manager_lost"
+        manager_lost = boolean()
+        field = "vote_epoch"
+        vote_epoch = uint64()
+        field = "vote_manager_id"
+        vote_manager_id = string()
+        field = "vote_yes"
+        vote_yes = boolean()
+        field = "vote_reason"
+        vote_reason = string()
+        field = "language"
+        string()
+        return ParticipantReport(
+            node=node,
+            incarnation=incarnation,
+            layers=layers,
+            applied_epoch=applied_epoch,
+            applied_manager_id=applied_manager_id,
+            active=active,
+            in_critical_section=in_critical_section,
+            pending_epoch=pending_epoch,
+            failed_epoch=failed_epoch,
+            error=error,
+            leaving=leaving,
+            hosted=hosted,
+            manager_lost=manager_lost,
+            vote_epoch=vote_epoch,
+            vote_manager_id=vote_manager_id,
+            vote_yes=vote_yes,
+            vote_reason=vote_reason,
+        )
+
+    def _remember(self, node: str, key: bytes, decoded: list[_Entry]) -> tuple[LayerDeclaration, ...]:
+        layers = tuple(
+            LayerDeclaration(
+                name=name,
+                excludes=frozenset(excludes),
+                requires=frozenset(required),
+                group=group,
+                after=frozenset(after),
+            )
+            for name, excludes, required, group, after in decoded
+        )
+        if len(self._last_layers) >= _DECLARATIONS_CACHE_SIZE:  # statuses under many names
+            self._last_layers.clear()
+        self._last_layers[node] = (key, layers)
+        return layers
+
+
+def _decoded_by_rclpy(data: bytes) -> ParticipantReport:
+    """Another encoding: read by rclpy (the message type's own code), then converted."""
+    from contextros_interfaces.msg import ParticipantStatus
+    from rclpy.serialization import deserialize_message
+
+    from contextros.ros.messages import report_from_msg
+
+    try:
+        message = deserialize_message(data, ParticipantStatus)
+    except RuntimeError as error:  # rclpy's RMWError
+        raise ValueError(f"status not readable: {error}") from None
+    return report_from_msg(message)

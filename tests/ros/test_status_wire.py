@@ -1,0 +1,128 @@
+"""The manager reads statuses from their bytes (status_wire) exactly as rclpy reads them, and
+damaged bytes give a ValueError naming the field, never another exception."""
+
+from __future__ import annotations
+
+import random
+
+import pytest
+from contextros_interfaces.msg import ParticipantStatus
+from rclpy.serialization import deserialize_message, serialize_message
+
+from contextros.protocol import LayerDeclaration, ParticipantReport
+from contextros.ros.messages import report_from_msg, report_to_msg
+from contextros.ros.status_wire import StatusDecoder
+
+REPORTS = [
+    ParticipantReport(node="/a"),
+    ParticipantReport(
+        node="/robot/cleaner",
+        incarnation="4711-0b5e",
+        layers=(
+            LayerDeclaration("Indoor", excludes=frozenset({"Outdoor"}), group="place"),
+            LayerDeclaration(
+                "Gps",
+                requires=frozenset({"Outdoor", "Sky"}),
+                after=frozenset({"Outdoor"}),
+            ),
+            LayerDeclaration("Outdoor", excludes=frozenset({"Indoor"}), group="place"),
+        ),
+        applied_epoch=2**40 + 3,
+        applied_manager_id="m-1",
+        active=("Indoor", "Gps"),
+        in_critical_section=True,
+        pending_epoch=7,
+        failed_epoch=5,
+        error="hook of Gps: gps not found ✗",
+        leaving=False,
+        hosted=("/robot/wheels", "/robot/camera"),
+        manager_lost=True,
+        vote_epoch=9,
+        vote_yes=True,
+        vote_reason="",
+        vote_manager_id="m-1",
+    ),
+    ParticipantReport(node="/b", incarnation="x", leaving=True, vote_reason="no: busy"),
+]
+
+
+def _bytes(report: ParticipantReport, wall_time: float = 1.5e9) -> bytes:
+    return serialize_message(report_to_msg(report, wall_time))
+
+
+def _by_rclpy(data: bytes) -> ParticipantReport:
+    return report_from_msg(deserialize_message(data, ParticipantStatus))
+
+
+@pytest.mark.parametrize("report", REPORTS, ids=["minimal", "everything", "leaving"])
+def test_a_status_reads_as_rclpy_reads_it(report: ParticipantReport) -> None:
+    data = _bytes(report)
+    assert data[:2] == b"\x00\x01", "the fast path is taken (CDR, little endian)"
+    assert StatusDecoder().decode(data) == _by_rclpy(data) == report
+
+
+def test_repeated_declarations_are_decoded_once_and_changed_ones_again() -> None:
+    decoder = StatusDecoder()
+    report = REPORTS[1]
+    first = decoder.decode(_bytes(report, 1.0))
+    later = decoder.decode(_bytes(report, 2.0))  # another stamp: the same declarations
+    assert later.layers is first.layers
+    changed = (*report.layers[:2], LayerDeclaration("Outdoor", group="place"))
+    other = decoder.decode(_bytes(ParticipantReport(**{**vars(report), "layers": changed}), 3.0))
+    assert other.layers == changed and other.layers is not first.layers
+    # Another node with the same name's length and other declarations is not confused.
+    renamed = ParticipantReport(**{**vars(report), "node": "/robot/cleanes", "layers": ()})
+    assert decoder.decode(_bytes(renamed)).layers == ()
+
+
+def test_invalid_utf8_is_replaced_and_a_nul_ends_a_string_as_rclpy_reads_them() -> None:
+    data = _bytes(ParticipantReport(node="/forgerX", incarnation="1"))
+    invalid = data.replace(b"/forgerX", b"/forger\xff")
+    assert StatusDecoder().decode(invalid).node == "/forger\ufffd" == _by_rclpy(invalid).node
+    cut = data.replace(b"/forgerX", b"/forg\x00rX")
+    assert StatusDecoder().decode(cut).node == "/forg" == _by_rclpy(cut).node
+
+
+def test_another_encoding_is_read_by_rclpy_or_refused_with_a_value_error() -> None:
+    data = _bytes(REPORTS[1])
+    with pytest.raises(ValueError, match="status not readable"):
+        StatusDecoder().decode(b"\x00\x07" + data[2:])  # an encapsulation nobody wrote
+    with pytest.raises(ValueError, match="status not readable"):
+        StatusDecoder().decode(b"")
+
+
+def test_damaged_statuses_give_a_value_error_naming_the_field_or_read_as_rclpy() -> None:
+    """Cuts at every byte, and random corruptions: never another exception; whatever both
+    read, they read alike."""
+    data = _bytes(REPORTS[1])
+    for cut in range(4, len(data)):
+        with pytest.raises(ValueError, match=r"status field \w+"):
+            StatusDecoder().decode(data[:cut])
+    rng = random.Random(16)
+    alike = refused = 0
+    for _ in range(3000):
+        damaged = bytearray(data)
+        for _ in range(rng.randint(1, 4)):
+            damaged[rng.randrange(4, len(data))] = rng.randrange(256)
+        try:
+            ours = StatusDecoder().decode(bytes(damaged))
+        except ValueError as error:
+            assert str(error).startswith("status field "), error
+            refused += 1
+            continue
+        try:
+            theirs = _by_rclpy(bytes(damaged))
+        except RuntimeError:
+            continue  # refused by rclpy (e.g. a bool that is neither 0 nor 1): read by us
+        assert ours == theirs
+        alike += 1
+    assert alike > 100 and refused > 100, (alike, refused)
+
+
+def test_a_huge_claimed_count_is_refused_at_once() -> None:
+    data = bytearray(_bytes(ParticipantReport(node="/a", incarnation="b")))
+    # After the header (4 bytes), node ("/a": 4 + 3 bytes, padded to 12) and incarnation
+    # ("b": 4 + 2 bytes, padded to 20): the layers' count.
+    data[20:24] = (2**32 - 1).to_bytes(4, "little")
+    with pytest.raises(ValueError, match="status field layers claims 4294967295 entries"):
+        StatusDecoder().decode(bytes(data))
