@@ -5,8 +5,11 @@ Set-up: the Layer manager (`contextros manager`) and one process with a context 
 their own. Each sample starts a fresh `python -m contextros activate Indoor|Outdoor --sync`
 and measures the wall time until that process exits: interpreter start, imports, ROS
 start-up, discovery of the manager's service, the synchronous activation and shutdown.
-For reference, `python -m contextros --version` (interpreter start and the package's own
-imports only) is measured in the same rounds.
+For reference, in the same rounds: `python -m contextros --version` (interpreter start and
+the package's own imports only), and the floor any rclpy command has: a plain rclpy script
+(`python -m benchmarks.cli_command plain LAYER`) that sends the same request to the manager's
+activation service (import rclpy and the service type, init, a node, wait for the service,
+call, shut down) with nothing of ContextROS.
 """
 
 from __future__ import annotations
@@ -21,15 +24,38 @@ from typing import Any
 from benchmarks.activation import BENCH_DOMAIN_ID, _wait_for_lines
 
 ROUNDS = 20
-TARGET_P90_S = 1.0
+TARGET_P90_S = 0.5
 COMMAND = "contextros activate LAYER --sync"
 VERSION = "contextros --version"
+PLAIN = "python -m benchmarks.cli_command plain LAYER"
 
 
-def _run(arguments: list[str], env: dict[str, str]) -> tuple[float, int, str]:
+def plain(layer: str) -> int:
+    """The same synchronous activation in plain rclpy: what any rclpy command costs."""
+    import rclpy
+    from contextros_interfaces.srv import Activate
+
+    rclpy.init()
+    node = rclpy.create_node("plain_cli")
+    client = node.create_client(Activate, "/contextros/activate")
+    deadline = time.monotonic() + 10.0
+    while not client.service_is_ready() and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.01)
+    request = Activate.Request(activate=[layer], synchronous=True, timeout=5.0)
+    future = client.call_async(request)
+    rclpy.spin_until_future_complete(node, future, timeout_sec=10.0)
+    success = future.done() and future.result().success
+    node.destroy_node()
+    rclpy.try_shutdown()
+    return 0 if success else 1
+
+
+def _run(
+    arguments: list[str], env: dict[str, str], module: str = "contextros"
+) -> tuple[float, int, str]:
     started = time.perf_counter()
     done = subprocess.run(
-        [sys.executable, "-m", "contextros", *arguments],
+        [sys.executable, "-m", module, *arguments],
         capture_output=True,
         text=True,
         env=env,
@@ -43,7 +69,7 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
 
     domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID)) + 1
     env = ros_environment(domain)
-    samples: dict[str, list[float]] = {COMMAND: [], VERSION: []}
+    samples: dict[str, list[float]] = {COMMAND: [], PLAIN: [], VERSION: []}
     failures = 0
     load_before = os.getloadavg()[0]
     with Launch(domain, grace=5.0) as launch:
@@ -66,6 +92,12 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
                 print(f"  cli: exit {status}: {error}", file=sys.stderr, flush=True)
             layer = "Indoor" if layer == "Outdoor" else "Outdoor"
             samples[VERSION].append(_run(["--version"], env)[0])
+            elapsed, status, error = _run(["plain", layer], env, "benchmarks.cli_command")
+            if status == 0:
+                samples[PLAIN].append(elapsed)
+            else:
+                print(f"  plain rclpy: exit {status}: {error}", file=sys.stderr, flush=True)
+            layer = "Indoor" if layer == "Outdoor" else "Outdoor"  # each command switches
     rows = []
     for case, values in samples.items():
         ordered = sorted(values)
@@ -108,4 +140,6 @@ def markdown(rows: list[dict[str, Any]]) -> str:
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["plain"]:
+        sys.exit(plain(sys.argv[2]))
     print(markdown(run()))

@@ -121,8 +121,7 @@ def test_entities_created_or_destroyed_between_wake_ups_are_taken_in_or_let_go(
     publisher.publish(String(data="after"))
     loop.spin_once(0.2)
     assert "after" not in seen
-    with pytest.raises(InvalidHandle):  # released by the loop, so destroyed
-        with handle:
-            pass
+    with pytest.raises(InvalidHandle), handle:  # released by the loop, so destroyed
+        pass
     loop.shutdown()
     node.destroy_node()

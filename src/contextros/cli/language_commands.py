@@ -7,13 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from contextros.language.flavours import (
-    LANGUAGES,
-    language_of,
-    parse_with_diagnostics,
-    read_source,
-    stem_of,
-)
+from contextros.language import LANGUAGES  # the rest on use: `activate` needs no parser
 
 
 def register(commands: Any) -> None:
@@ -123,6 +117,7 @@ def run_check(args: argparse.Namespace) -> int:
 
 def _activation_warnings(path: Path, activation: list[str], language: str | None) -> list[Any]:
     from contextros.language.checker import check_activation_order
+    from contextros.language.flavours import parse_with_diagnostics, read_source
 
     source = read_source(path)  # readable: check_file found no error
     layer_file, _ = parse_with_diagnostics(source, str(path), language)
@@ -139,6 +134,7 @@ def _shown_path(source: Path) -> str:
 def run_compile(args: argparse.Namespace) -> int:
     from contextros.language.compiler import compile_source
     from contextros.language.diagnostics import LayerSyntaxError
+    from contextros.language.flavours import language_of, read_source, stem_of
 
     source_path = Path(args.file)
     try:
@@ -174,6 +170,7 @@ def run_compile(args: argparse.Namespace) -> int:
 def _compile_cpp(args: argparse.Namespace, source: str) -> int:
     from contextros.language.cpp.generator import compile_cpp
     from contextros.language.diagnostics import LayerSyntaxError
+    from contextros.language.flavours import stem_of
 
     source_path = Path(args.file)
     output = args.output or str(source_path.with_name(f"{stem_of(source_path)}.layers.cpp"))

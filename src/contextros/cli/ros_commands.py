@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any
 
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
-from contextros.protocol.relations import ORDER_NOTE
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -350,6 +349,8 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
     present = [name for name in dict.fromkeys(requested) if name in position]
     if present == sorted(present, key=position.__getitem__):
         return ""
+    from contextros.protocol.relations import ORDER_NOTE
+
     _, _, declared = message.partition(ORDER_NOTE)
     return declared or "declared with 'after'"
 

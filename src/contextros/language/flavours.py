@@ -10,10 +10,10 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 
+from contextros.language import LANGUAGES
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink
 from contextros.language.syntax import LayerFile
 
-LANGUAGES = ("python", "cpp")
 SUFFIX = ".layers"
 # The inner suffix naming a file's flavour: NAME.py.layers, NAME.cpp.layers (.cc, .cxx).
 FLAVOUR_SUFFIXES = {".py": "python", ".cpp": "cpp", ".cc": "cpp", ".cxx": "cpp"}

@@ -12,6 +12,10 @@ from typing import TYPE_CHECKING, Any
 
 from contextros._exports import lazy_exports
 from contextros.installation import RosUnavailableError, ros_problem
+from contextros.ros.lean_imports import skip_message_generator
+
+# Before any message is used here: ROS processes start 0.16 s faster (see lean_imports).
+skip_message_generator()
 
 if TYPE_CHECKING:
     from contextros.protocol import ActivationFailed, ActivationResult, ManagerError

@@ -15,6 +15,7 @@ damaged status raises `ValueError` naming the field, never anything else.
 from __future__ import annotations
 
 import struct
+
 from contextros.protocol.events import ParticipantReport
 from contextros.protocol.relations import LayerDeclaration
 
@@ -162,7 +163,9 @@ class StatusDecoder:
             vote_reason=vote_reason,
         )
 
-    def _remember(self, node: str, key: bytes, decoded: list[_Entry]) -> tuple[LayerDeclaration, ...]:
+    def _remember(
+        self, node: str, key: bytes, decoded: list[_Entry]
+    ) -> tuple[LayerDeclaration, ...]:
         layers = tuple(
             LayerDeclaration(
                 name=name,
