@@ -11,7 +11,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from contextros.protocol import LayerDeclaration, ParticipantReport
 from contextros.ros.messages import report_from_msg, report_to_msg
-from contextros.ros.status_wire import StatusDecoder
+from contextros.ros.status_wire import StatusDecoder, StatusEncoder
 
 REPORTS = [
     ParticipantReport(node="/a"),
@@ -126,3 +126,26 @@ def test_a_huge_claimed_count_is_refused_at_once() -> None:
     data[20:24] = (2**32 - 1).to_bytes(4, "little")
     with pytest.raises(ValueError, match="status field layers claims 4294967295 entries"):
         StatusDecoder().decode(bytes(data))
+
+
+@pytest.mark.parametrize("report", REPORTS, ids=["minimal", "everything", "leaving"])
+def test_a_status_written_as_bytes_is_the_message_rclpy_would_write(
+    report: ParticipantReport,
+) -> None:
+    """What a participant publishes (StatusEncoder) deserializes, through rclpy, to exactly
+    the message `report_to_msg` builds, and reads back as the same report."""
+    encoder = StatusEncoder()
+    for wall_time in (1.7e9 + 0.123456789, 0.0, 1.7e9 + 0.5):  # the prefix reused
+        data = encoder.encode(report, wall_time)
+        assert deserialize_message(data, ParticipantStatus) == report_to_msg(report, wall_time)
+        assert StatusDecoder().decode(data) == report
+
+
+def test_the_encoded_prefix_follows_a_change_of_declarations() -> None:
+    encoder = StatusEncoder()
+    report = REPORTS[1]
+    encoder.encode(report, 1.0)
+    changed = ParticipantReport(**{**vars(report), "layers": report.layers[:1]})
+    assert StatusDecoder().decode(encoder.encode(changed, 2.0)).layers == report.layers[:1]
+    restarted = ParticipantReport(**{**vars(report), "incarnation": "4712-0b5e"})
+    assert StatusDecoder().decode(encoder.encode(restarted, 3.0)).incarnation == "4712-0b5e"

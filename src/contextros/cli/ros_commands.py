@@ -272,11 +272,19 @@ def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
     """A LayerClient on a short-lived node of this command's own (in the namespace the
     command line gives), torn down on the way out."""
     from rclpy.node import Node
+    from rclpy.parameter import Parameter
 
     from contextros.ros import LayerClient
 
     with ros_session(args):
-        node = Node(f"contextros_{purpose}_{os.getpid()}")
+        # A node with nothing to serve (no parameter or type description services, no
+        # /rosout): fewer endpoints to create and for the manager to discover.
+        node = Node(
+            f"contextros_{purpose}_{os.getpid()}",
+            start_parameter_services=False,
+            enable_rosout=False,
+            parameter_overrides=[Parameter("start_type_description_service", value=False)],
+        )
         try:
             yield LayerClient(node)
         finally:
