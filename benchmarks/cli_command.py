@@ -9,7 +9,8 @@ For reference, in the same rounds: `python -m contextros --version` (interpreter
 the package's own imports only), and the floor any rclpy command has: a plain rclpy script
 (`python -m benchmarks.cli_command plain LAYER`) that sends the same request to the manager's
 activation service (import rclpy and the service type, init, a node, wait for the service,
-call, shut down) with nothing of ContextROS.
+call, shut down) with nothing of ContextROS. With `CONTEXTROS_BEFORE=<a source tree>`, that
+tree's `contextros activate` runs in the same rounds too (against the same manager).
 """
 
 from __future__ import annotations
@@ -19,15 +20,18 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from benchmarks.activation import BENCH_DOMAIN_ID, _wait_for_lines
+from benchmarks.code_before import before_environment
 
 ROUNDS = 20
 TARGET_P90_S = 0.5
 COMMAND = "contextros activate LAYER --sync"
 VERSION = "contextros --version"
 PLAIN = "python -m benchmarks.cli_command plain LAYER"
+BEFORE = "before: contextros activate LAYER --sync"
 
 
 def plain(layer: str) -> int:
@@ -70,6 +74,10 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
     domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID)) + 1
     env = ros_environment(domain)
     samples: dict[str, list[float]] = {COMMAND: [], PLAIN: [], VERSION: []}
+    tree = os.environ.get("CONTEXTROS_BEFORE")
+    before_env = env | before_environment(Path(tree)) if tree else {}
+    if tree:
+        samples[BEFORE] = []
     failures = 0
     load_before = os.getloadavg()[0]
     with Launch(domain, grace=5.0) as launch:
@@ -98,6 +106,13 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
             else:
                 print(f"  plain rclpy: exit {status}: {error}", file=sys.stderr, flush=True)
             layer = "Indoor" if layer == "Outdoor" else "Outdoor"  # each command switches
+            if tree:
+                elapsed, status, error = _run(["activate", layer, "--sync"], before_env)
+                if status == 0:
+                    samples[BEFORE].append(elapsed)
+                else:
+                    print(f"  before: exit {status}: {error}", file=sys.stderr, flush=True)
+                layer = "Indoor" if layer == "Outdoor" else "Outdoor"
     rows = []
     for case, values in samples.items():
         ordered = sorted(values)
