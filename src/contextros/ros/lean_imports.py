@@ -41,7 +41,7 @@ def skip_message_generator() -> bool:
         del sys.modules[PACKAGE], sys.modules[support_spec.name]
         raise
     package.import_type_support = support.import_type_support  # type: ignore[attr-defined]
-    package.__getattr__ = _whole_package(package, spec)  # type: ignore[attr-defined]
+    setattr(package, "__getattr__", _whole_package(package, spec))  # noqa: B010 - PEP 562
     return True
 
 
