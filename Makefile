@@ -4,6 +4,9 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 # Isolation for anything that starts ROS 2 nodes from make (tests set their own per worker).
 export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
+# numpy (imported by every rclpy process) starts an OpenBLAS thread per core that spins for
+# a while: 0.1 s of CPU per process, and the tests, the demo and the benchmarks start many.
+export OPENBLAS_NUM_THREADS ?= 1
 unexport RMW_IMPLEMENTATION
 
 .PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe dashboard

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -38,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    # numpy, which rclpy imports, otherwise starts an OpenBLAS thread per core that spins
+    # for a while: 0.1 s of CPU per ROS process here, for algebra no command does.
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     parser = build_parser()
     # Standard ROS arguments (`--ros-args -r __ns:=/robot1 ...`) go to rclpy, untouched.
     own, ros_arguments = split_ros_arguments(sys.argv[1:] if argv is None else argv)
