@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from contextros.language import LANGUAGES  # the rest on use: `activate` needs no parser
+from contextros.language.flavour_names import LANGUAGES  # the parser on use only
 
 
 def register(commands: Any) -> None:

@@ -33,9 +33,6 @@ if TYPE_CHECKING:
     from contextros.language.ordering import activation_order
     from contextros.language.parser import parse
 
-# The flavours of the language, by the name `--language` takes.
-LANGUAGES = ("python", "cpp")
-
 _LAZY = {
     "check": "contextros.language.checker",
     "check_file": "contextros.language.checker",

@@ -10,8 +10,8 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable
 
-from contextros.language import LANGUAGES
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink
+from contextros.language.flavour_names import LANGUAGES
 from contextros.language.syntax import LayerFile
 
 SUFFIX = ".layers"
