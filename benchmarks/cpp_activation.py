@@ -100,18 +100,18 @@ def measure_round_trips(launch: Any, rounds: int, many: int = MANY) -> list[dict
             "--ros-args", "-r", f"__ns:={namespace}",
         )  # fmt: skip
     caller = Caller([namespace for _, namespace, _, _ in systems])
-    # The managers first: with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, a manager started
-    # after 32 C++ participants was never found by the caller started after it (after 24:
-    # found); started first, it is (docs/protocol.md, "Where one manager tops out").
-    for _, namespace, _, _ in systems:
-        caller.clients[namespace].wait_for_manager(60.0)
-    for label, namespace, count, kind in systems:
-        for index in range(count):
-            name = f"n{index:02d}"
-            launch.start(f"{label}/{name}", participant_command(kind, name, namespace))
     samples: dict[str, tuple[list[float], list[float]]] = {s[0]: ([], []) for s in systems}
     lost: dict[str, int] = dict.fromkeys(samples, 0)
     try:
+        # The managers first: with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, a manager started
+        # after 32 C++ participants was never found by the caller started after it (after
+        # 24: found); started first, it is (docs/protocol.md, "One host, many processes").
+        for _, namespace, _, _ in systems:
+            caller.clients[namespace].wait_for_manager(60.0)
+        for label, namespace, count, kind in systems:
+            for index in range(count):
+                name = f"n{index:02d}"
+                launch.start(f"{label}/{name}", participant_command(kind, name, namespace))
         for _, namespace, count, _ in systems:
             caller.wait_for(namespace, count, timeout=60.0 + 2.0 * many)  # discovery is slow
         for round_index in range(rounds + 2):  # the first two rounds warm up

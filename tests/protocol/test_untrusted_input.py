@@ -86,6 +86,21 @@ def running_manager(**settings: Any) -> ManagerProtocol:
 @pytest.mark.parametrize(
     ("field", "change"), BAD_REPORTS, ids=[f"{f}-{i}" for i, (f, _) in enumerate(BAD_REPORTS)]
 )
+def test_a_known_participants_bad_status_is_ignored_too(field: str, change: dict[str, Any]) -> None:
+    """What a participant repeats from its last accepted status is not checked again: what
+    it changes is (and a status under another node or incarnation is a stranger's)."""
+    manager = running_manager()
+    before = (manager.state, manager.registry(1.0).participants)
+    actions = manager.receive_status(dataclasses.replace(GOOD, **change), 1.1)
+    (rejected,) = actions
+    assert isinstance(rejected, ReportRejected)
+    assert any(field in problem for problem in rejected.problems), rejected.problems
+    assert (manager.state, manager.registry(1.0).participants) == before
+
+
+@pytest.mark.parametrize(
+    ("field", "change"), BAD_REPORTS, ids=[f"{f}-{i}" for i, (f, _) in enumerate(BAD_REPORTS)]
+)
 def test_a_bad_status_is_ignored_and_named(field: str, change: dict[str, Any]) -> None:
     manager = running_manager()
     before = (manager.state, manager.registry(1.0).participants)

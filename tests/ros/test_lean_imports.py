@@ -14,8 +14,10 @@ from contextros_interfaces.msg import LayerState
 data = serialize_message(LayerState(epoch=7))
 assert deserialize_message(data, LayerState).epoch == 7
 print("generator loaded:", sorted(m for m in ("em", "lark", "rosidl_pycommon") if m in sys.modules))
+import rosidl_generator_py as package
+print("submodule:", package.import_type_support_impl.__name__)
 from rosidl_generator_py import generate_py
-print("generate_py:", callable(generate_py), "em" in sys.modules)
+print("generate_py:", callable(generate_py), "em" in sys.modules, package.__all__)
 """
 
 
@@ -24,7 +26,11 @@ def test_type_support_loads_without_the_generator_which_still_loads_on_demand() 
         [sys.executable, "-c", PROBE], capture_output=True, text=True, timeout=60, check=False
     )
     assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == ["generator loaded: []", "generate_py: True True"]
+    assert done.stdout.splitlines() == [
+        "generator loaded: []",
+        "submodule: rosidl_generator_py.import_type_support_impl",
+        "generate_py: True True ['import_type_support', 'generate_py']",
+    ]
 
 
 def test_nothing_changes_when_the_package_was_loaded_before() -> None:

@@ -149,3 +149,35 @@ def test_the_encoded_prefix_follows_a_change_of_declarations() -> None:
     assert StatusDecoder().decode(encoder.encode(changed, 2.0)).layers == report.layers[:1]
     restarted = ParticipantReport(**{**vars(report), "incarnation": "4712-0b5e"})
     assert StatusDecoder().decode(encoder.encode(restarted, 3.0)).incarnation == "4712-0b5e"
+
+
+def test_a_string_without_its_terminator_reads_as_rclpy_reads_it() -> None:
+    data = bytearray(_bytes(ParticipantReport(node="/abcX", incarnation="1")))
+    data[13] = ord("Q")  # node: length 6 at 4..8, then "/abcX\0" at 8..14: its NUL goes
+    assert StatusDecoder().decode(bytes(data)).node == "/abcXQ"
+    assert StatusDecoder().decode(bytes(data)).node == _by_rclpy(bytes(data)).node
+
+
+def test_what_the_decoder_keeps_is_bounded_whatever_the_senders_make_up() -> None:
+    """Declarations are kept before any check: statuses too large to be accepted are not
+    kept at all, and a flood under ever new names costs a bounded amount."""
+    import tracemalloc
+
+    import contextros.ros.status_wire as wire
+
+    empty = tuple(LayerDeclaration(f"L{index}") for index in range(300))  # > MAX_LAYERS
+    decoder = StatusDecoder()
+    tracemalloc.start()
+    try:
+        before = tracemalloc.get_traced_memory()[0]
+        for index in range(40):
+            decoder.decode(_bytes(ParticipantReport(node=f"/huge{index}", layers=empty)))
+        kept = tracemalloc.get_traced_memory()[0] - before
+    finally:
+        tracemalloc.stop()
+    assert kept < 1_000_000, f"{kept} bytes kept for statuses no manager accepts"
+    some = tuple(LayerDeclaration(f"L{index}") for index in range(200))
+    for index in range(120):
+        decoder.decode(_bytes(ParticipantReport(node=f"/flood{index}", layers=some)))
+        assert decoder._cached_declarations <= wire._CACHE_DECLARATIONS
+        assert decoder._cached_bytes <= wire._CACHE_BYTES

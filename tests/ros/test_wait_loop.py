@@ -125,3 +125,25 @@ def test_entities_created_or_destroyed_between_wake_ups_are_taken_in_or_let_go(
         pass
     loop.shutdown()
     node.destroy_node()
+
+
+def test_an_entity_destroyed_by_itself_is_let_go_and_the_loop_goes_on(context: Context) -> None:
+    """`subscription.destroy()` (or leaving `with node.create_subscription(...)`) destroys an
+    entity its node still lists: the loop builds its wait set again without it."""
+    node = Node("wait_loop_self_destroyed", context=context)
+    publisher = node.create_publisher(String, "wait_loop/self_destroyed", 10)
+    seen: list[str] = []
+    gone = node.create_subscription(String, "wait_loop/self_destroyed", seen.append, 10)
+    kept: list[str] = []
+    node.create_subscription(String, "wait_loop/self_destroyed", kept.append, 10)
+    loop = WaitLoop([node], context=context)
+    loop.spin_once(0.0)
+    gone.destroy()
+    deadline = time.monotonic() + 10.0
+    while not kept and time.monotonic() < deadline:
+        publisher.publish(String(data="after"))
+        loop.spin_once(0.05)
+    assert kept and not seen
+    loop.shutdown()
+    loop.spin_once(0.0)  # after shutdown: nothing held, nothing done
+    node.destroy_node()

@@ -40,7 +40,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     # numpy, which rclpy imports, otherwise starts an OpenBLAS thread per core that spins
-    # for a while: 0.1 s of CPU per ROS process here, for algebra no command does.
+    # for a while: 0.1 s of CPU per ROS process here; no command needs threaded algebra.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     parser = build_parser()
     # Standard ROS arguments (`--ros-args -r __ns:=/robot1 ...`) go to rclpy, untouched.

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -41,17 +42,31 @@ def skip_message_generator() -> bool:
         del sys.modules[PACKAGE], sys.modules[support_spec.name]
         raise
     package.import_type_support = support.import_type_support  # type: ignore[attr-defined]
+    setattr(package, SUPPORT, support)  # as importing the submodule does
     setattr(package, "__getattr__", _whole_package(package, spec))  # noqa: B010 - PEP 562
     return True
 
 
 def _whole_package(package: Any, spec: Any) -> Any:
+    lock = threading.RLock()
+    loading = False
+
     def load_and_get(name: str) -> Any:
-        """Any other name (e.g. `generate_py`): the package's own `__init__` runs now."""
-        if name.startswith("__"):
+        """Any other name (`generate_py`, `__all__`...): the package's own `__init__` runs
+        now, once; if it fails it runs again on the next such name."""
+        nonlocal loading
+        if name.startswith("__") and name != "__all__":
             raise AttributeError(name)
-        del package.__getattr__
-        spec.loader.exec_module(package)
-        return getattr(package, name)
+        with lock:
+            if "__getattr__" in vars(package) and not loading:
+                loading = True
+                try:
+                    spec.loader.exec_module(package)
+                    del package.__getattr__
+                finally:
+                    loading = False
+        if name in vars(package):
+            return vars(package)[name]
+        raise AttributeError(f"module {PACKAGE!r} has no attribute {name!r}")
 
     return load_and_get

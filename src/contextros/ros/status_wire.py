@@ -10,7 +10,12 @@ endian, as Fast DDS, Cyclone DDS and Zenoh write it on the machines ROS 2 runs o
 else (big endian, another encapsulation) goes through rclpy's deserialization.
 
 The bytes come from the network: every length is checked against what is left, and a
-damaged status raises `ValueError` naming the field, never anything else.
+damaged status raises `ValueError` naming the field (or, through rclpy, saying it is not
+readable), never anything else. Whatever rclpy reads, this reads alike (invalid UTF-8
+replaced, a string up to its first NUL, a string without its terminator), except that it
+refuses some damaged statuses rclpy reads in part (a nested sequence running past the end,
+which rclpy reads as empty) and reads a bool byte other than 0 and 1 as true (rclpy
+refuses it). What it keeps of the declarations it saw is bounded (`_CACHE_*`).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from collections.abc import Iterable
 
 from contextros.protocol.events import ParticipantReport
 from contextros.protocol.relations import LayerDeclaration
+from contextros.protocol.validation import MAX_LAYERS
 
 # The encapsulation read here (the first two bytes): plain CDR, little endian.
 _CDR_LE = b"\x00\x01"
@@ -27,8 +33,11 @@ _HEADER = 4
 _U32, _U64 = struct.Struct("<I").unpack_from, struct.Struct("<Q").unpack_from
 _PACK_U32, _PACK_U64 = struct.Struct("<I").pack, struct.Struct("<Q").pack
 _PACK_TIME = struct.Struct("<iI").pack
-# Nodes whose last declarations are kept (participants repeat theirs in every status).
-_DECLARATIONS_CACHE_SIZE = 4096
+# What is kept of nodes' last declarations (participants repeat theirs in every status),
+# before any check: bounded whatever a sender makes up. All is forgotten when one is full.
+_CACHE_NODES = 4096
+_CACHE_DECLARATIONS = 16_384
+_CACHE_BYTES = 4 << 20
 # A LayerInfo as read: name, excludes, required, group, after.
 _Entry = tuple[str, tuple[str, ...], tuple[str, ...], str, tuple[str, ...]]
 
@@ -39,6 +48,7 @@ class StatusDecoder:
     def __init__(self) -> None:
         # Each node's last declarations: their bytes, and what they decoded to.
         self._last_layers: dict[str, tuple[bytes, tuple[LayerDeclaration, ...]]] = {}
+        self._cached_declarations = self._cached_bytes = 0
 
     def decode(self, data: bytes) -> ParticipantReport:
         if data[:2] != _CDR_LE:
@@ -65,14 +75,9 @@ class StatusDecoder:
             pos += length
             if pos > size:
                 raise ValueError(f"status field {field} runs past the message's end")
-            if length == 0:  # a writer may send no terminator for an empty string
-                return ""
-            if data[pos - 1] != 0:
-                raise ValueError(f"status field {field} is a string without its terminator")
-            text = data[start : pos - 1]
-            if 0 in text:  # rclpy reads a C string: up to the first NUL
-                text = text[: text.index(0)]
-            return text.decode(errors="replace")  # as rclpy reads it
+            text = data[start:pos]  # with its terminating NUL, if the writer sent one
+            cut = text.find(0)  # rclpy reads a C string: up to the first NUL
+            return (text if cut < 0 else text[:cut]).decode(errors="replace")
 
         def strings() -> tuple[str, ...]:
             entries = count()
@@ -182,9 +187,23 @@ class StatusDecoder:
             )
             for name, excludes, required, group, after in decoded
         )
-        if len(self._last_layers) >= _DECLARATIONS_CACHE_SIZE:  # statuses under many names
+        if len(layers) > MAX_LAYERS:  # refused by the checks anyway: not worth keeping
+            return layers
+        full = (
+            len(self._last_layers) >= _CACHE_NODES
+            or self._cached_declarations + len(layers) > _CACHE_DECLARATIONS
+            or self._cached_bytes + len(key) > _CACHE_BYTES
+        )
+        if full:  # statuses under many names, or huge ones
             self._last_layers.clear()
+            self._cached_declarations = self._cached_bytes = 0
+        previous = self._last_layers.pop(node, None)
+        if previous is not None:
+            self._cached_declarations -= len(previous[1])
+            self._cached_bytes -= len(previous[0])
         self._last_layers[node] = (key, layers)
+        self._cached_declarations += len(layers)
+        self._cached_bytes += len(key)
         return layers
 
 

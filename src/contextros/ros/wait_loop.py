@@ -22,6 +22,7 @@ timer, a subscription and a service had none of its callbacks run under it here.
 from __future__ import annotations
 
 import contextlib
+import time
 from collections.abc import Sequence
 from typing import Any
 
@@ -59,26 +60,23 @@ class WaitLoop:
         self._waitables: list[Any] = []
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
+        if not self.nodes:  # shut down, or nothing to spin: nothing to wait on, or hold
+            time.sleep(timeout_sec or 0.0)
+            return
         entities = tuple(
             tuple(entity for node in self.nodes for entity in getattr(node, kind))
             for kind in _KINDS
         )
         if entities != self._entities:
             self._build(entities)
+        try:
+            self._fill()
+        except InvalidHandle:
+            # An entity destroyed with its own destroy(), still listed by its node (rclpy
+            # lists it until the node destroys it): taken out by building again.
+            self._build(entities)
+            self._fill()
         wait_set = self._wait_set
-        wait_set.clear_entities()
-        for subscription in self._subscriptions:
-            wait_set.add_subscription(subscription.handle)
-        for client in self._clients:
-            wait_set.add_client(client.handle)
-        for service in self._services:
-            wait_set.add_service(service.handle)
-        for timer in self._timers:
-            wait_set.add_timer(timer.handle)
-        for guard in self._guards:
-            wait_set.add_guard_condition(guard.handle)
-        for waitable in self._waitables:
-            waitable.add_to_wait_set(wait_set)
         wait_set.wait(timeout_sec_to_nsec(timeout_sec))
         ready_waitables = [w for w in self._waitables if w.is_ready(wait_set)]
         if self._timers:
@@ -108,6 +106,23 @@ class WaitLoop:
                     self._run_service(service)
         for waitable in ready_waitables:
             _run_to_completion(waitable.execute(waitable.take_data()))
+
+    def _fill(self) -> None:
+        """The wait set, cleared and given every entity again (rcl_wait empties it)."""
+        wait_set = self._wait_set
+        wait_set.clear_entities()
+        for subscription in self._subscriptions:
+            wait_set.add_subscription(subscription.handle)
+        for client in self._clients:
+            wait_set.add_client(client.handle)
+        for service in self._services:
+            wait_set.add_service(service.handle)
+        for timer in self._timers:
+            wait_set.add_timer(timer.handle)
+        for guard in self._guards:
+            wait_set.add_guard_condition(guard.handle)
+        for waitable in self._waitables:
+            waitable.add_to_wait_set(wait_set)
 
     def shutdown(self, timeout_sec: float | None = None) -> bool:
         del timeout_sec
