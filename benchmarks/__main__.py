@@ -93,11 +93,13 @@ def main() -> int:
     parts.append(f"_Total benchmark time: {time.time() - started:.0f} s._")
     DOCS.mkdir(exist_ok=True)
     target = DOCS / "benchmarks.md"
-    if only and target.exists():
-        # Some sections only: put them in place in the existing page, keep the others.
-        text = _splice(target.read_text(), "\n".join(parts) + "\n", only)
+    if target.exists():
+        # The measured sections in place in the existing page; the others, and the sections
+        # measured by hand (before/after runs, profiles), kept as they were.
+        measured = only or {name for name, _ in SECTIONS}
+        text = _splice(target.read_text(), "\n".join(parts) + "\n", measured, not only)
         target.write_text(text)
-        print(f"updated {sorted(only)} in {target}")
+        print(f"updated {sorted(measured)} in {target}")
         return 0
     target.write_text("\n".join(parts) + "\n")
     print(f"wrote {DOCS / 'benchmarks.md'}")
@@ -110,11 +112,13 @@ def _sections(text: str) -> tuple[str, dict[str, str]]:
     return head, {chunk.split("\n", 1)[0]: "## " + chunk for chunk in chunks}
 
 
-def _splice(page: str, fresh: str, only: set[str]) -> str:
+def _splice(page: str, fresh: str, only: set[str], fresh_head: bool = False) -> str:
     """`page` with the sections of `fresh` replaced in place (new ones appended), the others
-    kept as they were."""
+    kept as they were; with `fresh_head` (a full run), the page's head (machine, command,
+    date) is `fresh`'s too."""
     head, old = _sections(page)
-    _, new = _sections(fresh.split("\n_Total benchmark time")[0])
+    new_head, new = _sections(fresh.split("\n_Total benchmark time")[0])
+    head = new_head if fresh_head else head
     titles = {title for name, title in SECTIONS if name in only}
     merged = [
         new[title] if title in titles and title in new else section
