@@ -33,6 +33,7 @@ ASSUMED_DEFAULT_TIMEOUT = 10.0
 # Discovery: how often to look for the manager's services, how long to wait for a probe.
 POLL = 0.01
 PROBE = 0.2
+PROBE_MAX = 1.6
 
 
 def default_requester() -> str:
@@ -69,7 +70,7 @@ class LayerClient:
         """Return once the manager's services are discovered and answer this client.
 
         Polls every 10 ms (rclpy's own `wait_for_service` sleeps 0.25 s between looks),
-        then asks the registry once with short retries: a service can be discovered by
+        then asks the registry, again at growing intervals: a service can be discovered by
         the client before the manager has discovered the client's reply reader (Fast
         DDS, ros2/rmw_fastrtps#842), and a reply sent meanwhile is lost; a command sent
         after an answered query does not wait seconds for a lost reply.
@@ -84,17 +85,32 @@ class LayerClient:
                     "namespace: `--ros-args -r __ns:=...`)"
                 )
             time.sleep(POLL)
-        while True:
-            future = self._query.call_async(QueryRegistry.Request())
-            left = deadline - time.monotonic()
-            rclpy.spin_until_future_complete(self.node, future, timeout_sec=min(PROBE, left))
-            if future.done():
-                return
-            self._query.remove_pending_request(future)
-            if time.monotonic() >= deadline:
-                raise ManagerError(
-                    f"the Layer manager on {self.service_name} did not answer within {timeout:g} s"
-                )
+        # A probe is asked again, less and less often, and any probe's answer will do: on a
+        # loaded machine an answer can take longer than the first wait (a probe dropped at
+        # each wait would then never be answered in time).
+        probes: list[Any] = []
+        wait = PROBE
+        try:
+            while True:
+                probes.append(self._query.call_async(QueryRegistry.Request()))
+                until = min(time.monotonic() + wait, deadline)
+                while not any(probe.done() for probe in probes):
+                    left = until - time.monotonic()
+                    if left <= 0:
+                        break
+                    rclpy.spin_once(self.node, timeout_sec=left)
+                if any(probe.done() for probe in probes):
+                    return
+                if time.monotonic() >= deadline:
+                    raise ManagerError(
+                        f"the Layer manager on {self.service_name} did not answer within "
+                        f"{timeout:g} s"
+                    )
+                wait = min(2 * wait, PROBE_MAX)
+        finally:
+            for probe in probes:
+                if not probe.done():
+                    self._query.remove_pending_request(probe)
 
     @property
     def service_name(self) -> str:
