@@ -13,7 +13,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from contextros_interfaces.srv import Activate, QueryRegistry  # noqa: E402
 from rclpy.context import Context  # noqa: E402
-from rclpy.executors import MultiThreadedExecutor  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
 from contextros.ros.client import PROBE, LayerClient  # noqa: E402
@@ -50,7 +50,7 @@ def test_a_manager_slower_than_a_probe_is_still_found(context: Context) -> None:
         Activate, ACTIVATE_SERVICE, lambda request, response: response, qos_profile=ACTIVATE_QOS
     )
     server.create_service(QueryRegistry, QUERY_SERVICE, query, qos_profile=QUERY_QOS)
-    executor = MultiThreadedExecutor(num_threads=1, context=context)
+    executor = SingleThreadedExecutor(context=context)
     executor.add_node(server)
     spinning = threading.Thread(target=executor.spin, daemon=True)
     spinning.start()
