@@ -62,6 +62,7 @@ def test_a_manager_slower_than_a_probe_is_still_found(context: Context) -> None:
         assert asked, "the stand-in was asked"
         assert time.monotonic() - started < 10.0 * SLOW
     finally:
-        executor.shutdown(timeout_sec=1.0)
+        executor.shutdown(timeout_sec=5.0)
+        spinning.join(timeout=5.0)  # the stand-in's last slow answer sent before it goes
         caller.destroy_node()
         server.destroy_node()
