@@ -213,22 +213,22 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
 _FASTDDS_PROFILE_VARIABLES = ("FASTDDS_DEFAULT_PROFILES_FILE", "FASTRTPS_DEFAULT_PROFILES_FILE")
 
 
-def _announce_often() -> None:
-    """Make the manager's participant announce itself every 0.2 s (Fast DDS default: 3 s),
-    so that short-lived clients discover it fast; only with Fast DDS, and never over a
-    profile file the user chose."""
+def use_packaged_profile(name: str) -> None:
+    """Use the Fast DDS profile `name` shipped in `contextros/ros/` (the manager's: it
+    announces itself often; both: a reader repairs a missed first message fast); only with
+    Fast DDS, and never over a profile file the user chose. Call before rclpy starts."""
     rmw = os.environ.get("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
     if not rmw.startswith("rmw_fastrtps") or any(
-        os.environ.get(name) for name in _FASTDDS_PROFILE_VARIABLES
+        os.environ.get(variable) for variable in _FASTDDS_PROFILE_VARIABLES
     ):
         return
-    profile = Path(__file__).resolve().parent.parent / "ros" / "manager_discovery.xml"
+    profile = Path(__file__).resolve().parent.parent / "ros" / name
     if profile.is_file():
         os.environ["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
 
 
 def run_manager(args: argparse.Namespace) -> int:
-    _announce_often()  # before rclpy creates the participant
+    use_packaged_profile("manager_discovery.xml")  # before rclpy creates the participant
     from contextros.protocol import ManagerSettings
     from contextros.ros import LayerManagerNode, spin_nodes
 
@@ -276,6 +276,7 @@ def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
 
     from contextros.ros import LayerClient
 
+    use_packaged_profile("client_discovery.xml")
     with ros_session(args):
         # A node with nothing to serve (no parameter or type description services, no
         # /rosout): fewer endpoints to create and for the manager to discover.
