@@ -87,7 +87,10 @@ def wake_up_rows(seconds: float = 3.0) -> list[tuple[str, float]]:
                 loop.spin_once(0.1)
             used = time.process_time() - cpu
             rows.append((f"a timer's wake-up: {label}", used / max(ticks[0], 1) * 1e6))
-            loop.shutdown() if label == "WaitLoop" else loop.remove_node(node)
+            if label == "WaitLoop":
+                loop.shutdown()
+            else:
+                loop.remove_node(node)
         node.destroy_node()
     finally:
         rclpy.try_shutdown()
