@@ -8,7 +8,7 @@ import sys
 from collections.abc import Sequence
 
 from contextros import __version__
-from contextros.cli import language_commands, observe_commands, ros_commands
+from contextros.cli import daemon_commands, language_commands, observe_commands, ros_commands
 from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.cli.ros_commands import USAGE
 from contextros.installation import cmake_package_prefixes, ros_problem
@@ -33,7 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
     offline = set(commands.choices)
     ros_commands.register(commands)
     observe_commands.register_ros(commands, ros_commands.add_namespace_option)
-    for name in set(commands.choices) - offline:  # checked before they run: see main
+    daemon_commands.register(commands)
+    # ROS is checked before these run (see main); the daemon's commands check it only when
+    # they ask the manager themselves (importing rclpy to check would cost most of a run).
+    for name in set(commands.choices) - offline - set(ros_commands.DAEMON_SERVED):
         commands.choices[name].set_defaults(needs_ros=True)
     return parser
 

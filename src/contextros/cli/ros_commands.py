@@ -27,6 +27,8 @@ if TYPE_CHECKING:
 FAILED = 1
 USAGE = 2
 NO_MANAGER = 3
+# The commands the daemon answers (contextros.cli.daemon) when it runs.
+DAEMON_SERVED = ("activate", "deactivate", "switch", "status")
 
 
 class RosArgumentsError(Exception):
@@ -166,6 +168,11 @@ def _add_connection_options(parser: argparse.ArgumentParser) -> None:
         metavar="S",
         help="how long to look for the manager (default 5 s)",
     )
+    parser.add_argument(
+        "--no-daemon",
+        action="store_true",
+        help="ask the manager from this process, not through the daemon (`contextros daemon`)",
+    )
     add_namespace_option(parser)
 
 
@@ -271,21 +278,12 @@ def run_manager(args: argparse.Namespace) -> int:
 def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
     """A LayerClient on a short-lived node of this command's own (in the namespace the
     command line gives), torn down on the way out."""
-    from rclpy.node import Node
-    from rclpy.parameter import Parameter
-
     from contextros.ros import LayerClient
+    from contextros.ros.client import quiet_node
 
     use_packaged_profile("client_discovery.xml")
     with ros_session(args):
-        # A node with nothing to serve (no parameter or type description services, no
-        # /rosout): fewer endpoints to create and for the manager to discover.
-        node = Node(
-            f"contextros_{purpose}_{os.getpid()}",
-            start_parameter_services=False,
-            enable_rosout=False,
-            parameter_overrides=[Parameter("start_type_description_service", value=False)],
-        )
+        node = quiet_node(f"contextros_{purpose}_{os.getpid()}")
         try:
             yield LayerClient(node)
         finally:
@@ -302,13 +300,64 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     if args.expect_count < 0:
         print("contextros: --expect-count must be 0 or more", file=sys.stderr)
         return 2
+    answer = _through_daemon(
+        args,
+        {
+            "command": "activate",
+            "on": on,
+            "off": off,
+            "sync": args.sync,
+            "timeout": args.timeout,
+            "atomic": args.atomic,
+            "expect": args.expect,
+            "expect_count": args.expect_count,
+            "reason": args.reason,
+            "requester": _requester(),
+        },
+    )
+    if answer is None:
+        answer = _send_directly(args, on, off)
+    if answer["outcome"] == "no_manager":
+        print(f"contextros: {answer['message']}", file=sys.stderr)
+        return NO_MANAGER
+    if answer["outcome"] != "result":  # "failed", or the command line's own "usage"
+        print(f"contextros: {answer['message']}", file=sys.stderr)
+        return USAGE if answer["outcome"] == "usage" else FAILED
+    return _print_result(args, on, answer["result"])
+
+
+def _requester() -> str:
+    from contextros.identity import default_requester
+
+    return default_requester()
+
+
+def _through_daemon(args: argparse.Namespace, request: dict[str, Any]) -> dict[str, Any] | None:
+    """The daemon's answer (see contextros.cli.daemon), or None: ask the manager directly.
+    Not with --no-daemon, nor with ROS arguments (they configure this process's node)."""
+    if args.no_daemon or args.ros_arguments:
+        return None
+    if args.namespace is not None and namespace_problem(args.namespace):
+        return None  # the direct path says what is wrong with it
+    from contextros.cli.daemon.client import answer_for
+
+    # Long enough for the client's own retries: 3 attempts of (2 phases x timeout + 2 s).
+    longest = args.wait_manager + 3 * (2 * max(getattr(args, "timeout", 0.0), 10.0) + 2.0) + 5.0
+    return answer_for(
+        request | {"namespace": args.namespace, "wait_manager": args.wait_manager}, longest
+    )
+
+
+def _send_directly(args: argparse.Namespace, on: list[str], off: list[str]) -> dict[str, Any]:
+    """The same answer as the daemon's, from a client node of this process."""
+    if problem := _ros_problem(args):
+        return problem
     try:
         with _client(args, "cli") as client:
             try:
                 client.wait_for_manager(args.wait_manager)
             except LayerError as error:
-                print(f"contextros: {error}", file=sys.stderr)
-                return NO_MANAGER
+                return {"outcome": "no_manager", "message": str(error)}
             try:
                 result = client.request(
                     on,
@@ -321,32 +370,47 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
                     atomic=args.atomic,
                 )
             except LayerError as error:
-                print(f"contextros: {error}", file=sys.stderr)
-                return FAILED
+                return {"outcome": "failed", "message": str(error)}
     except RosArgumentsError as error:
-        return usage_error(error)
-    moved = _reordered(on, result.active, result.message)
-    if moved and result.success:
+        return {"outcome": "usage", "message": str(error)}
+    from contextros.cli.daemon.wire import result_as_dict
+
+    return {"outcome": "result", "result": result_as_dict(result)}
+
+
+def _ros_problem(args: argparse.Namespace) -> dict[str, Any] | None:
+    """A usage answer if rclpy or the messages cannot be imported (as main checks for the
+    other ROS commands), else None."""
+    from contextros.installation import ros_problem
+
+    if problem := ros_problem():
+        return {"outcome": "usage", "message": problem}
+    return None
+
+
+def _print_result(args: argparse.Namespace, on: list[str], result: dict[str, Any]) -> int:
+    moved = _reordered(on, tuple(result["active"]), result["message"])
+    if moved and result["success"]:
         print(
             f"contextros: warning: activation order {', '.join(on)} contradicts the declared "
-            f"order ({moved}); the manager composed [{', '.join(result.active)}] "
+            f"order ({moved}); the manager composed [{', '.join(result['active'])}] "
             "(last = outermost)",
             file=sys.stderr,
         )
     if args.json:
-        print(json.dumps(result.__dict__ | {"active": list(result.active)}, default=list))
+        print(json.dumps(result))
     else:
-        layers = ", ".join(result.active) or "none"
-        print(f"epoch {result.epoch}: active [{layers}]")
-        if result.success and result.message.startswith("no change"):
-            print(result.message)
-        elif result.acknowledged or result.not_acknowledged:
+        layers = ", ".join(result["active"]) or "none"
+        print(f"epoch {result['epoch']}: active [{layers}]")
+        if result["success"] and result["message"].startswith("no change"):
+            print(result["message"])
+        elif result["acknowledged"] or result["not_acknowledged"]:
             print(
-                f"acknowledged by {len(result.acknowledged)} node(s) "
-                f"in {result.elapsed * 1000:.1f} ms"
+                f"acknowledged by {len(result['acknowledged'])} node(s) "
+                f"in {result['elapsed'] * 1000:.1f} ms"
             )
-    if not result.success:
-        print(f"contextros: {result.message}", file=sys.stderr)
+    if not result["success"]:
+        print(f"contextros: {result['message']}", file=sys.stderr)
         return FAILED
     return 0
 
@@ -365,6 +429,22 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
 
 
 def run_status(args: argparse.Namespace) -> int:
+    answer = _through_daemon(args, {"command": "status"})
+    if answer is None:
+        answer = _status_directly(args)
+    if answer["outcome"] != "registry":
+        print(f"contextros: {answer['message']}", file=sys.stderr)
+        return USAGE if answer["outcome"] == "usage" else NO_MANAGER
+    if args.json:
+        print(json.dumps(answer["registry"], indent=2))
+    else:
+        print(_registry_as_text(answer["registry"]))
+    return 0
+
+
+def _status_directly(args: argparse.Namespace) -> dict[str, Any]:
+    if problem := _ros_problem(args):
+        return problem
     from contextros.ros.messages import registry_to_dict
 
     try:
@@ -373,15 +453,10 @@ def run_status(args: argparse.Namespace) -> int:
                 client.wait_for_manager(args.wait_manager)
                 registry = client.query()
             except LayerError as error:
-                print(f"contextros: {error}", file=sys.stderr)
-                return NO_MANAGER
+                return {"outcome": "no_manager", "message": str(error)}
+            return {"outcome": "registry", "registry": registry_to_dict(registry)}
     except RosArgumentsError as error:
-        return usage_error(error)
-    if args.json:
-        print(json.dumps(registry_to_dict(registry), indent=2))
-    else:
-        print(_registry_as_text(registry))
-    return 0
+        return {"outcome": "usage", "message": str(error)}
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
@@ -393,10 +468,8 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
     )
 
 
-def _registry_as_text(registry: Any) -> str:
-    from contextros.ros.messages import registry_to_dict
-
-    data = registry_to_dict(registry)
+def _registry_as_text(data: dict[str, Any]) -> str:
+    """`contextros status`'s tables, from `registry_to_dict`'s data."""
     active = ", ".join(data["active"]) or "none"
     by = f"{data['requester'] or '?'}: {data['reason'] or '-'}"
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import getpass
 import os
 import time
 from collections.abc import Iterable
@@ -10,8 +9,11 @@ from typing import Any
 
 import rclpy
 from contextros_interfaces.srv import Activate, QueryRegistry
+from rclpy.executors import Executor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
+from contextros.identity import default_requester
 from contextros.protocol import (
     ActivationCommand,
     ActivationFailed,
@@ -36,14 +38,6 @@ PROBE = 0.2
 PROBE_MAX = 1.6
 
 
-def default_requester() -> str:
-    try:
-        user = getpass.getuser()
-    except (KeyError, OSError):
-        user = "unknown"
-    return f"{user}@pid{os.getpid()}"
-
-
 class LayerClient:
     """Sends activation commands to the Layer manager from an existing node.
 
@@ -58,9 +52,13 @@ class LayerClient:
     `ActivationFailed` instead of returning a failed answer. See docs/client.md.
     """
 
-    def __init__(self, node: Node, requester: str | None = None) -> None:
+    def __init__(
+        self, node: Node, requester: str | None = None, executor: Executor | None = None
+    ) -> None:
         self.node = node
         self.requester = requester or default_requester()
+        # Spins use rclpy's global executor unless given one (a thread of its own needs one).
+        self._executor = executor
         self._activate: Any = node.create_client(
             Activate, ACTIVATE_SERVICE, qos_profile=ACTIVATE_QOS
         )
@@ -98,7 +96,7 @@ class LayerClient:
                     left = until - time.monotonic()
                     if left <= 0:
                         break
-                    rclpy.spin_once(self.node, timeout_sec=left)
+                    rclpy.spin_once(self.node, executor=self._executor, timeout_sec=left)
                 if any(probe.done() for probe in probes):
                     return
                 if time.monotonic() >= deadline:
@@ -208,7 +206,9 @@ class LayerClient:
                 expect_count=expect_count,
                 atomic=atomic,
             )
-            rclpy.spin_until_future_complete(self.node, future, timeout_sec=wait)
+            rclpy.spin_until_future_complete(
+                self.node, future, executor=self._executor, timeout_sec=wait
+            )
             if future.done():
                 return result_from_response(future.result())
             self._activate.remove_pending_request(future)
@@ -263,11 +263,25 @@ class LayerClient:
         """The manager's registry (`QueryRegistry` response); asks again if a reply is lost."""
         for _ in range(ATTEMPTS):
             future = self._query.call_async(QueryRegistry.Request())
-            rclpy.spin_until_future_complete(self.node, future, timeout_sec=timeout / ATTEMPTS)
+            rclpy.spin_until_future_complete(
+                self.node, future, executor=self._executor, timeout_sec=timeout / ATTEMPTS
+            )
             if future.done():
                 return future.result()
             self._query.remove_pending_request(future)
         raise ManagerError(f"the Layer manager did not answer a query within {timeout:g} s")
+
+
+def quiet_node(name: str, namespace: str | None = None) -> Node:
+    """A node with nothing to serve, for a client: no parameter or type description
+    services, no /rosout (fewer endpoints to create, and for the manager to discover)."""
+    return Node(
+        name,
+        namespace=namespace,
+        start_parameter_services=False,
+        enable_rosout=False,
+        parameter_overrides=[Parameter("start_type_description_service", value=False)],
+    )
 
 
 def _checked(result: ActivationResult) -> ActivationResult:
