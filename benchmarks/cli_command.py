@@ -1,24 +1,30 @@
-"""A CLI client command on a running system, from process start to exit (issue 12).
+"""A CLI client command on a running system, from process start to exit (issues 12, 16).
 
 Set-up: the Layer manager (`contextros manager`) and one process with a context node
 (the cleaner's Indoor/Outdoor layers, as in the activation benchmark) run in a domain of
 their own. Each sample starts a fresh `python -m contextros activate Indoor|Outdoor --sync`
-and measures the wall time until that process exits: interpreter start, imports, ROS
-start-up, discovery of the manager's service, the synchronous activation and shutdown.
-For reference, in the same rounds: `python -m contextros --version` (interpreter start and
-the package's own imports only), and the floor any rclpy command has: a plain rclpy script
-(`python -m benchmarks.cli_command plain LAYER`) that sends the same request to the manager's
-activation service (import rclpy and the service type, init, a node, wait for the service,
-call, shut down) with nothing of ContextROS. With `CONTEXTROS_BEFORE=<a source tree>`, that
-tree's `contextros activate` runs in the same rounds too (against the same manager).
+and measures the wall time until that process exits. The command goes through the CLI's
+daemon (`contextros daemon`, started before the rounds in a directory of the benchmark's
+own): interpreter start, the CLI's imports, one local round trip and the synchronous
+activation. With `--no-daemon` the command does everything itself (what the first command,
+the one that starts the daemon, costs): imports, ROS start-up, discovery of the manager's
+service, the activation and shutdown. For reference, in the same rounds:
+`python -m contextros --version` (interpreter start and the package's own imports only), and
+the floor any rclpy command has: a plain rclpy script (`python -m benchmarks.cli_command
+plain LAYER`) that sends the same request to the manager's activation service (import rclpy
+and the service type, init, a node, wait for the service, call, shut down) with nothing of
+ContextROS. With `CONTEXTROS_BEFORE=<a source tree>`, that tree's `contextros activate` runs
+in the same rounds too (against the same manager).
 """
 
 from __future__ import annotations
 
 import os
+import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Any
@@ -29,6 +35,7 @@ from benchmarks.code_before import before_environment
 ROUNDS = 20
 TARGET_P90_S = 0.5
 COMMAND = "contextros activate LAYER --sync"
+NO_DAEMON = "contextros activate LAYER --sync --no-daemon"
 VERSION = "contextros --version"
 PLAIN = "python -m benchmarks.cli_command plain LAYER"
 BEFORE = "before: contextros activate LAYER --sync"
@@ -72,47 +79,52 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
     from examples.launch import Launch, ros_environment
 
     domain = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN_ID", BENCH_DOMAIN_ID)) + 1
-    env = ros_environment(domain)
-    samples: dict[str, list[float]] = {COMMAND: [], PLAIN: [], VERSION: []}
+    runtime = tempfile.mkdtemp(prefix="crd-bench-")
+    env = ros_environment(domain) | {"CONTEXTROS_RUNTIME_DIR": runtime}
+    env.pop("CONTEXTROS_NO_DAEMON", None)
+    cases = [COMMAND, NO_DAEMON, PLAIN, VERSION]
     tree = os.environ.get("CONTEXTROS_BEFORE")
     before_env = env | before_environment(Path(tree)) if tree else {}
     if tree:
-        samples[BEFORE] = []
-    failures = 0
+        cases.append(BEFORE)
+    samples: dict[str, list[float]] = {case: [] for case in cases}
+    failures = dict.fromkeys(cases, 0)
     load_before = os.getloadavg()[0]
-    with Launch(domain, grace=5.0) as launch:
-        launch.start_module("manager", "contextros", "manager", "--recovery-window", "0.3")
-        launch.start_module("worker", "benchmarks.activation", "worker", "bench_cli_node")
-        _wait_for_lines(launch, "ready", 1)
-        # Until the manager knows the node (its first states are recovery).
-        for _ in range(50):
-            _, status, _ = _run(["activate", "Indoor", "--sync", "--timeout", "5"], env)
-            if status == 0:
-                break
-            time.sleep(0.2)
-        layer = "Outdoor"
-        for _ in range(rounds):
-            elapsed, status, error = _run(["activate", layer, "--sync", "--timeout", "5"], env)
-            if status == 0:
-                samples[COMMAND].append(elapsed)
-            else:
-                failures += 1
-                print(f"  cli: exit {status}: {error}", file=sys.stderr, flush=True)
-            layer = "Indoor" if layer == "Outdoor" else "Outdoor"
-            samples[VERSION].append(_run(["--version"], env)[0])
-            elapsed, status, error = _run(["plain", layer], env, "benchmarks.cli_command")
-            if status == 0:
-                samples[PLAIN].append(elapsed)
-            else:
-                print(f"  plain rclpy: exit {status}: {error}", file=sys.stderr, flush=True)
-            layer = "Indoor" if layer == "Outdoor" else "Outdoor"  # each command switches
-            if tree:
-                elapsed, status, error = _run(["activate", layer, "--sync"], before_env)
+    try:
+        with Launch(domain, grace=5.0) as launch:
+            launch.start_module("manager", "contextros", "manager", "--recovery-window", "0.3")
+            launch.start_module("worker", "benchmarks.activation", "worker", "bench_cli_node")
+            _wait_for_lines(launch, "ready", 1)
+            _run(["daemon", "start"], env)
+            # Until the manager knows the node (its first states are recovery).
+            for _ in range(50):
+                _, status, _ = _run(["activate", "Indoor", "--sync", "--timeout", "5"], env)
                 if status == 0:
-                    samples[BEFORE].append(elapsed)
-                else:
-                    print(f"  before: exit {status}: {error}", file=sys.stderr, flush=True)
-                layer = "Indoor" if layer == "Outdoor" else "Outdoor"
+                    break
+                time.sleep(0.2)
+            layer = "Outdoor"
+            commands = {
+                COMMAND: (["activate", "LAYER", "--sync", "--timeout", "5"], env, "contextros"),
+                NO_DAEMON: (["activate", "LAYER", "--sync", "--no-daemon"], env, "contextros"),
+                PLAIN: (["plain", "LAYER"], env, "benchmarks.cli_command"),
+                VERSION: (["--version"], env, "contextros"),
+                BEFORE: (["activate", "LAYER", "--sync"], before_env, "contextros"),
+            }
+            for _ in range(rounds):
+                for case in cases:
+                    arguments, case_env, module = commands[case]
+                    arguments = [layer if word == "LAYER" else word for word in arguments]
+                    elapsed, status, error = _run(arguments, case_env, module)
+                    if status == 0:
+                        samples[case].append(elapsed)
+                    else:
+                        failures[case] += 1
+                        print(f"  {case}: exit {status}: {error}", file=sys.stderr, flush=True)
+                    if "LAYER" in commands[case][0]:  # each command switches
+                        layer = "Indoor" if layer == "Outdoor" else "Outdoor"
+    finally:
+        _run(["daemon", "stop"], env)
+        shutil.rmtree(runtime, ignore_errors=True)
     rows = []
     for case, values in samples.items():
         ordered = sorted(values)
@@ -120,7 +132,7 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
             {
                 "case": case,
                 "samples": len(ordered),
-                "failed": failures if case == COMMAND else 0,
+                "failed": failures[case],
                 "median_s": statistics.median(ordered) if ordered else float("nan"),
                 "p90_s": ordered[int(0.9 * (len(ordered) - 1))] if ordered else float("nan"),
                 "max_s": ordered[-1] if ordered else float("nan"),
