@@ -62,6 +62,7 @@ MODES = (
     FLOOR,
 )
 PER_NODE = ", one participant per node"
+LEAN = ", lean spin"  # the workers spin with WaitLoop: spin_nodes(nodes, lean=True)
 SERIES = (
     "asynchronous",
     "synchronous",
@@ -69,6 +70,8 @@ SERIES = (
     "atomic",
     "asynchronous" + PER_NODE,
     "synchronous" + PER_NODE,
+    "asynchronous" + PER_NODE + LEAN,
+    "synchronous" + PER_NODE + LEAN,
     *MODES[3:],
 )
 PINGS_PER_ROUND = 5
@@ -98,7 +101,13 @@ WHY_MISSED = {
         " after the other in rclpy's executor (about half of such a process's Python time"
         " is the executor's own, in a py-spy profile of issue 16), while the manager's part"
         " per participant is under 0.1 ms (section manager_cost). The time is the"
-        " participants' processes waiting for a core."
+        " participants' processes waiting for a core. Spun by `WaitLoop` (the lean-spin"
+        " series, `spin_nodes(nodes, lean=True)`) the executor's share goes (23-31 ms"
+        " instead of 36-41 ms at N=64 in issue 16's fourth session); what is left, in a"
+        " py-spy profile of those workers, is half waiting on each process's wait set (8"
+        " nodes with their parameter services and QoS event handlers, about 100 entities)"
+        " and the per-participant take, apply and status. 64 C++ nodes in 64 processes took"
+        " 24 ms on the same 2 cores (section cpp_activation)."
     ),
     "floor": (
         "A synchronous activation is four messages (command, state, acknowledgement, answer)"
@@ -125,10 +134,11 @@ CONTEXTS = ("Indoor", "Outdoor")
 # -- the worker processes ---------------------------------------------------------------------
 
 
-def worker(names: list[str], echo: bool, per_node: bool) -> None:
+def worker(names: list[str], echo: bool, per_node: bool, lean: bool = False) -> None:
     """Host context nodes (and the floor's echo) until interrupted, then print apply times.
 
-    They share one participant (the default), or with `per_node` each has its own.
+    They share one participant (the default), or with `per_node` each has its own; `lean`:
+    spun by `WaitLoop` (`spin_nodes(..., lean=True)`) instead of rclpy's executor.
     """
     import rclpy
     from rcl_interfaces.msg import SetParametersResult
@@ -170,7 +180,7 @@ def worker(names: list[str], echo: bool, per_node: bool) -> None:
         echo_node.create_subscription(UInt64, "bench/ping", pong.publish, 10)
         nodes.append(echo_node)
     print("ready", flush=True)
-    spin_nodes(nodes)
+    spin_nodes(nodes, lean=lean)
     print(json.dumps({"applied": applied}), flush=True)
     rclpy.try_shutdown()
 
@@ -297,12 +307,12 @@ class Caller:
 
 
 def _start_workers(
-    launch: Any, count: int, per_process: int, per_node: bool
+    launch: Any, count: int, per_process: int, per_node: bool, lean: bool = False
 ) -> tuple[list[str], list[str]]:
     """Start the workers; return the names of all nodes and of the participants among them."""
     processes = math.ceil(count / per_process)
     # Names unique per run: a node of the previous run still leaving cannot be mistaken for one.
-    variant = "p" if per_node else "s"
+    variant = ("l" if lean else "p") if per_node else "s"
     names = [f"bench_{count}{variant}_n{index:02d}" for index in range(count)]
     participants = []
     for process in range(processes):
@@ -310,6 +320,7 @@ def _start_workers(
         participants += own if per_node else own[:1]
         options = ["--echo"] if process == 0 else []
         options += ["--per-node"] if per_node else []
+        options += ["--lean"] if lean else []
         launch.start_module(f"worker{process}", "benchmarks.activation", "worker", *own, *options)
     return names, participants
 
@@ -340,13 +351,19 @@ def _collect_apply_times(launch: Any) -> dict[str, dict[int, float]]:
 
 
 def measure(
-    count: int, caller: Caller, launch: Any, rounds: int, per_process: int, per_node: bool
+    count: int,
+    caller: Caller,
+    launch: Any,
+    rounds: int,
+    per_process: int,
+    per_node: bool,
+    lean: bool = False,
 ) -> dict[str, list[float]]:
     """Seconds per activation, per series, for `count` nodes (workers started and stopped).
 
     With `per_node`, only the two activation modes are measured (the rest does not change).
     """
-    names, participants = _start_workers(launch, count, per_process, per_node)
+    names, participants = _start_workers(launch, count, per_process, per_node, lean)
     _wait_for_lines(launch, "ready", math.ceil(count / per_process))
     caller.wait_for_nodes(names, participants)
     caller.spin_until(lambda: caller.ping.get_subscription_count() > 0)
@@ -398,7 +415,7 @@ def measure(
             continue  # a lost sample (reported as lost), never a guessed one
         times["asynchronous"].append(max(s for s in stamps if s is not None) - published)
     if per_node:
-        return {mode + PER_NODE: times[mode] for mode in modes}
+        return {mode + PER_NODE + (LEAN if lean else ""): times[mode] for mode in modes}
     return times
 
 
@@ -421,9 +438,9 @@ def run(
             for count in node_counts:
                 print(f"  activation: {count} nodes", flush=True)
                 times: dict[str, list[float]] = {}
-                for per_node in (False, True):
+                for per_node, lean in ((False, False), (True, False), (True, True)):
                     try:
-                        times |= measure(count, caller, launch, rounds, per_process, per_node)
+                        times |= measure(count, caller, launch, rounds, per_process, per_node, lean)
                     except (RuntimeError, TimeoutError, LayerError) as error:
                         # Not measured (reported as lost), rather than no report at all.
                         print(f"  {count} nodes: {error}", file=sys.stderr, flush=True)
@@ -497,6 +514,8 @@ def markdown(rows: list[dict[str, Any]]) -> str:
     per_node_1 = _median(rows, "synchronous" + PER_NODE, 1)
     per_node_async_64 = _median(rows, "asynchronous" + PER_NODE, 64)
     per_node_async_1 = _median(rows, "asynchronous" + PER_NODE, 1)
+    lean_64 = _median(rows, "synchronous" + PER_NODE + LEAN, 64)
+    lean_1 = _median(rows, "synchronous" + PER_NODE + LEAN, 1)
     parallel_64 = _median(rows, "parameter, parallel", 64)
     atomic_64 = _median(rows, "atomic", 64)
     checks = [
@@ -530,6 +549,25 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             "participants",
         ),
         (
+            "synchronous, one participant per node, lean spin, at N=64 / parameter, parallel "
+            "at N=64 (issue 16)",
+            lean_64 / parallel_64,
+            0.3,
+            "parallel",
+        ),
+        (
+            "synchronous, one participant per node, lean spin, at N=64, median ms (issue 16)",
+            lean_64,
+            15.0,
+            "participants",
+        ),
+        (
+            "synchronous, one participant per node, lean spin, N=64 / N=1 (issue 16)",
+            lean_64 / lean_1,
+            4.0,
+            "participants",
+        ),
+        (
             "asynchronous, one participant per node, N=64 / N=1",
             per_node_async_64 / per_node_async_1,
             8.0,
@@ -559,7 +597,7 @@ def plot(rows: list[dict[str, Any]], path: Path) -> None:
     figure, axes = plt.subplots(figsize=(7, 4.5))
     for series in SERIES:
         points = sorted((r["nodes"], r["median_ms"]) for r in rows if r["series"] == series)
-        style = ":" if series == FLOOR else "--" if series.endswith(PER_NODE) else "-"
+        style = ":" if series == FLOOR else "--" if PER_NODE in series else "-"
         axes.plot([n for n, _ in points], [m for _, m in points], style, marker="o", label=series)
     axes.set_xscale("log", base=2)
     axes.set_yscale("log")
@@ -582,8 +620,9 @@ def main(argv: list[str]) -> int:
         parser.add_argument("names", nargs="*")
         parser.add_argument("--echo", action="store_true")
         parser.add_argument("--per-node", action="store_true")
+        parser.add_argument("--lean", action="store_true")
         worker_args = parser.parse_args(argv[1:])
-        worker(worker_args.names, worker_args.echo, worker_args.per_node)
+        worker(worker_args.names, worker_args.echo, worker_args.per_node, worker_args.lean)
         return 0
     parser = argparse.ArgumentParser(description="activation benchmark")
     parser.add_argument("--nodes", type=int, nargs="+", default=list(NODE_COUNTS))

@@ -17,7 +17,7 @@ from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
-from contextros.ros.wait_loop import WaitLoop  # noqa: E402
+from contextros.ros.wait_loop import UnsupportedEntityError, WaitLoop  # noqa: E402
 
 
 @pytest.fixture
@@ -146,4 +146,66 @@ def test_an_entity_destroyed_by_itself_is_let_go_and_the_loop_goes_on(context: C
     assert kept and not seen
     loop.shutdown()
     loop.spin_once(0.0)  # after shutdown: nothing held, nothing done
+    node.destroy_node()
+
+
+def test_what_the_loop_would_not_run_is_refused_by_name(context: Context) -> None:
+    """A coroutine callback (nothing would await it) or a waitable other than a QoS event
+    handler (an action's `execute` awaits its goals; no action type is installed here, so
+    a waitable of the test's own stands for one): refused with the node and the entity,
+    before any wake-up runs anything."""
+    from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
+    from rclpy.waitable import Waitable
+
+    class GoalWaitable(Waitable[None]):
+        pass
+
+    async def on_message(message: String) -> None:
+        del message
+
+    node = Node("wait_loop_async", context=context)
+    node.create_subscription(String, "wait_loop/async", on_message, 10)
+    with pytest.raises(UnsupportedEntityError, match=r"/wait_loop_async: the subscription "):
+        WaitLoop([node], context=context).spin_once(0.0)
+    node.destroy_node()
+    node = Node("wait_loop_action", context=context)
+    node.add_waitable(GoalWaitable(MutuallyExclusiveCallbackGroup()))
+    with pytest.raises(UnsupportedEntityError, match=r"/wait_loop_action: .* not GoalWaitable"):
+        WaitLoop([node], context=context).spin_once(0.0)
+    node.destroy_node()
+    # A context node (subscriptions, timers, services, QoS event handlers) is served.
+    plain = Node("wait_loop_plain", context=context)
+    plain.create_subscription(String, "wait_loop/plain", lambda m: None, 10)
+    loop = WaitLoop([plain], context=context)
+    loop.spin_once(0.0)
+    loop.shutdown()
+    plain.destroy_node()
+
+
+def test_a_qos_event_is_taken_and_its_callback_run(context: Context) -> None:
+    """QoS event handlers are served on the loop's fast path: an incompatible QoS event
+    (a reliable reader, a best-effort writer) reaches its callback, and is taken (else the
+    wait set would wake at once, again and again)."""
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+    node = Node("wait_loop_events", context=context)
+    seen: list[object] = []
+    reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    callbacks = SubscriptionEventCallbacks(incompatible_qos=seen.append)
+    node.create_subscription(
+        String, "wait_loop/events", lambda m: None, reliable, event_callbacks=callbacks
+    )
+    node.create_publisher(String, "wait_loop/events", best_effort)
+    loop = WaitLoop([node], context=context)
+    deadline = time.monotonic() + 10.0
+    while not seen and time.monotonic() < deadline:
+        loop.spin_once(0.05)
+    assert len(seen) == 1 and seen[0].total_count == 1  # type: ignore[attr-defined]
+    # Taken: nothing is ready any more, so a wake-up waits its whole timeout.
+    started = time.monotonic()
+    loop.spin_once(0.2)
+    assert time.monotonic() - started >= 0.15
+    loop.shutdown()
     node.destroy_node()
