@@ -29,7 +29,10 @@ from __future__ import annotations
 import contextlib
 import inspect
 import time
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Callable, Iterable, Sequence
+from functools import partial
+from itertools import compress
 from typing import Any
 
 from rclpy.context import Context
@@ -58,17 +61,25 @@ class WaitLoop:
         self._entities: tuple[tuple[Any, ...], ...] = ()
         self._held = contextlib.ExitStack()
         self._wait_set: Any = None
-        # What the wait set waits on, by kind, with the handles still usable.
-        self._timers: list[Any] = []
-        self._subscriptions: list[Any] = []
-        self._guards: list[Any] = []
-        self._clients: list[Any] = []
-        self._services: list[Any] = []
+        # What the wait set waits on: per kind, the handles (added in this order) and the
+        # entity of each handle's pointer (what get_ready_entities names).
+        self._handles: dict[str, list[Any]] = {}
+        self._by_pointer: dict[str, dict[int, Any]] = {}
         self._waitables: list[Any] = []
         # QoS event handlers (most of a node's waitables: one or two per publisher and
-        # subscription), with their event handles: added and checked without rclpy's
-        # per-waitable calls.
-        self._events: list[tuple[Any, Any]] = []
+        # subscription) and their event handles: added and checked in bulk, without
+        # rclpy's per-waitable calls.
+        self._event_handlers: list[Any] = []
+        self._event_handles: list[Any] = []
+        self._event_indices: list[int] = []
+        # Ready entities run kind by kind, in this order (as rclpy's executor orders them).
+        self._runners: tuple[tuple[str, Callable[[Any], None]], ...] = (
+            ("timer", self._run_timer),
+            ("subscription", self._run_subscription),
+            ("guard_condition", self._run_guard),
+            ("client", self._run_client),
+            ("service", self._run_service),
+        )
 
     def spin_once(self, timeout_sec: float | None = None) -> None:
         if not self.nodes:  # shut down, or nothing to spin: nothing to wait on, or hold
@@ -80,73 +91,54 @@ class WaitLoop:
         )
         if entities != self._entities:
             self._build(entities)
-        try:
-            self._fill()
-        except InvalidHandle:
-            # An entity destroyed with its own destroy(), still listed by its node (rclpy
-            # lists it until the node destroys it): taken out by building again.
-            self._build(entities)
-            self._fill()
+        self._fill()
         wait_set = self._wait_set
         wait_set.wait(timeout_sec_to_nsec(timeout_sec))
         ready_waitables = [w for w in self._waitables if w.is_ready(wait_set)]
-        if self._events:
-            is_ready = wait_set.is_ready
-            ready_waitables += [  # (the handler's own is_ready marks its event to take)
-                handler
-                for handler, _ in self._events
-                if is_ready("event", handler._event_index) and handler.is_ready(wait_set)
-            ]
-        if self._timers:
-            ready = set(wait_set.get_ready_entities("timer"))
-            for timer in self._timers:
-                if timer.handle.pointer in ready and timer.handle.is_timer_ready():
-                    self._run_timer(timer)
-        if self._subscriptions:
-            ready = set(wait_set.get_ready_entities("subscription"))
-            for subscription in self._subscriptions:
-                if subscription.handle.pointer in ready:
-                    self._run_subscription(subscription)
-        if self._guards:
-            ready = set(wait_set.get_ready_entities("guard_condition"))
-            for guard in self._guards:
-                if guard.handle.pointer in ready and guard.callback:
-                    guard.callback()
-        if self._clients:
-            ready = set(wait_set.get_ready_entities("client"))
-            for client in self._clients:
-                if client.handle.pointer in ready:
-                    self._run_client(client)
-        if self._services:
-            ready = set(wait_set.get_ready_entities("service"))
-            for service in self._services:
-                if service.handle.pointer in ready:
-                    self._run_service(service)
+        if self._event_handlers:
+            indices = self._event_indices
+            flags = map(partial(wait_set.is_ready, "event"), indices)
+            for handler, index in compress(zip(self._event_handlers, indices, strict=True), flags):
+                handler._event_index = index
+                if handler.is_ready(wait_set):  # marks its event to be taken
+                    ready_waitables.append(handler)
+        for kind, run in self._runners:
+            by_pointer = self._by_pointer[kind]
+            if not by_pointer:
+                continue
+            for pointer in wait_set.get_ready_entities(kind):
+                entity = by_pointer.get(pointer)
+                if entity is None:
+                    continue
+                handle = entity.handle
+                try:
+                    handle.__enter__()
+                except InvalidHandle:
+                    # Destroyed (its own destroy(), or its node's destroy_* in a callback of
+                    # this wake-up) while still listed: let go of at the next wake-up.
+                    self._entities = ()
+                    continue
+                try:
+                    run(entity)
+                finally:
+                    handle.__exit__(None, None, None)
         for waitable in ready_waitables:
             _run_to_completion(waitable.execute(waitable.take_data()))
 
     def _fill(self) -> None:
-        """The wait set, cleared and given every entity again (rcl_wait empties it)."""
+        """The wait set, cleared and given every entity again (rcl_wait empties it), one
+        kind at a time in C (`map`): a Python loop over 180 entities cost 0.17 ms."""
         wait_set = self._wait_set
         wait_set.clear_entities()
-        for subscription in self._subscriptions:
-            wait_set.add_subscription(subscription.handle)
-        for client in self._clients:
-            wait_set.add_client(client.handle)
-        for service in self._services:
-            wait_set.add_service(service.handle)
-        for timer in self._timers:
-            wait_set.add_timer(timer.handle)
-        for guard in self._guards:
-            wait_set.add_guard_condition(guard.handle)
+        handles = self._handles
+        consume(map(wait_set.add_subscription, handles["subscription"]))
+        consume(map(wait_set.add_client, handles["client"]))
+        consume(map(wait_set.add_service, handles["service"]))
+        consume(map(wait_set.add_timer, handles["timer"]))
+        consume(map(wait_set.add_guard_condition, handles["guard_condition"]))
         for waitable in self._waitables:
             waitable.add_to_wait_set(wait_set)
-        add_event = wait_set.add_event
-        for handler, event in self._events:
-            # Entering raises InvalidHandle once its subscription or publisher was
-            # destroyed by itself (still listed by the node): the loop then builds again.
-            with event:
-                handler._event_index = add_event(event)
+        self._event_indices = list(map(wait_set.add_event, self._event_handles))
 
     def shutdown(self, timeout_sec: float | None = None) -> bool:
         del timeout_sec
@@ -159,9 +151,9 @@ class WaitLoop:
         self._wait_set = None
         self._held.close()
         self._entities = ()
-        self._timers, self._subscriptions, self._guards = [], [], []
-        self._clients, self._services, self._waitables = [], [], []
-        self._events = []
+        self._handles, self._by_pointer = {}, {}
+        self._waitables, self._event_handlers, self._event_handles = [], [], []
+        self._event_indices = []
 
     def _build(self, entities: tuple[tuple[Any, ...], ...]) -> None:
         _check_supported(self.nodes)
@@ -199,19 +191,35 @@ class WaitLoop:
             raise
         self._held = held
         self._entities = entities
-        self._timers, self._subscriptions, self._guards = timers, subscriptions, guards
+        for kind, members in (
+            ("timer", timers),
+            ("subscription", subscriptions),
+            ("guard_condition", guards),
+            ("client", clients),
+            ("service", services),
+        ):
+            self._handles[kind] = [entity.handle for entity in members]
+            self._by_pointer[kind] = {entity.handle.pointer: entity for entity in members}
+        events = [(w, event) for w in waitables if (event := _event_handle(w)) is not None]
+        self._event_handlers = [handler for handler, _ in events]
+        self._event_handles = [event for _, event in events]
         self._waitables = [w for w in waitables if _event_handle(w) is None]
-        self._events = [(w, event) for w in waitables if (event := _event_handle(w)) is not None]
-        self._clients, self._services = clients, services
 
     @staticmethod
     def _run_timer(timer: Any) -> None:
+        if not timer.handle.is_timer_ready():
+            return
         try:
             timer.handle.call_timer()
         except Exception:  # a timer cancelled meanwhile (rclpy's TimerCancelledError)
             return
         if timer.callback:
             timer.callback()
+
+    @staticmethod
+    def _run_guard(guard: Any) -> None:
+        if guard.callback:
+            guard.callback()
 
     @staticmethod
     def _run_subscription(subscription: Any) -> None:
@@ -291,6 +299,11 @@ def _usable(
             continue  # destroyed meanwhile
         usable.append(entity)
     return usable
+
+
+def consume(iterator: Iterable[Any]) -> None:
+    """Run an iterator through, in C (the `map`s of `_fill`)."""
+    deque(iterator, maxlen=0)
 
 
 def _event_handle(waitable: Any) -> Any:
