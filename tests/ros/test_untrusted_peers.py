@@ -106,8 +106,10 @@ def test_two_live_processes_with_one_name_are_both_tracked_and_shown(
     assert not result.success and result.not_acknowledged == ("/twin",), result.message
     assert "two live processes are named so" in result.message
     from contextros.cli.ros_commands import _registry_as_text
+    from contextros.ros.messages import registry_to_dict
 
-    assert "CONFLICT: more than one live process is named /twin" in _registry_as_text(registry)
+    shown = _registry_as_text(registry_to_dict(registry))
+    assert "CONFLICT: more than one live process is named /twin" in shown
 
 
 def test_a_participant_knows_when_it_lost_the_manager_and_when_it_is_back(
