@@ -41,6 +41,9 @@ def spin_nodes(
 
     `lean`: spin with `WaitLoop` instead of rclpy's executor (the manager does: it answers
     every participant's messages, and rclpy's executor cost more than its callbacks).
+    Context nodes whose callbacks are plain functions may too (a third of the CPU per
+    activation, docs/protocol.md "Spinning lean"); it raises UnsupportedEntityError on a
+    coroutine callback or an action.
     """
     executor: SingleThreadedExecutor | WaitLoop
     if lean:
