@@ -14,9 +14,11 @@ import sys
 import time
 import timeit
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 CALLS = 20_000
+LOCATION_LAYERS = Path(__file__).resolve().parent.parent / "examples/cleaner/location.layers"
 REPEATS = 5
 
 
@@ -67,6 +69,8 @@ def wake_up_rows(seconds: float = 3.0) -> list[tuple[str, float]]:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
+    from contextros.language import load
+    from contextros.ros import ContextNode
     from contextros.ros.wait_loop import WaitLoop
 
     rclpy.init()
@@ -75,23 +79,35 @@ def wake_up_rows(seconds: float = 3.0) -> list[tuple[str, float]]:
         node = Node("hot_path_wake_up", start_parameter_services=False)
         ticks = [0]
         node.create_timer(0.001, lambda: ticks.__setitem__(0, ticks[0] + 1))
-        for label in ("WaitLoop", "SingleThreadedExecutor", "WaitLoop"):
-            if label == "WaitLoop":
-                loop: Any = WaitLoop([node])
-            else:
-                loop = SingleThreadedExecutor()
-                loop.add_node(node)
-            ticks[0] = 0
-            cpu, started = time.process_time(), time.monotonic()
-            while time.monotonic() - started < seconds:
-                loop.spin_once(0.1)
-            used = time.process_time() - cpu
-            rows.append((f"a timer's wake-up: {label}", used / max(ticks[0], 1) * 1e6))
-            if label == "WaitLoop":
-                loop.shutdown()
-            else:
-                loop.remove_node(node)
-        node.destroy_node()
+        # A worker of the activation benchmark: 8 context nodes, a participant each (their
+        # parameter services, subscriptions, timers and QoS event handlers: 180 entities).
+        layers = load(LOCATION_LAYERS).__layers__
+        workers = [
+            ContextNode(f"hot_path_{index}", layers=layers, share_participant=False)
+            for index in range(8)
+        ]
+        cases = [("a timer's wake-up", [node]), ("with 8 context nodes", [node, *workers])]
+        for case, nodes in cases:
+            for label in ("WaitLoop", "SingleThreadedExecutor", "WaitLoop"):
+                if label == "WaitLoop":
+                    loop: Any = WaitLoop(nodes)
+                else:
+                    loop = SingleThreadedExecutor()
+                    for member in nodes:
+                        loop.add_node(member)
+                ticks[0] = 0
+                cpu, started = time.process_time(), time.monotonic()
+                while time.monotonic() - started < seconds:
+                    loop.spin_once(0.1)
+                used = time.process_time() - cpu
+                rows.append((f"{case}: {label}", used / max(ticks[0], 1) * 1e6))
+                if label == "WaitLoop":
+                    loop.shutdown()
+                else:
+                    for member in nodes:
+                        loop.remove_node(member)
+        for member in [*workers, node]:
+            member.destroy_node()
     finally:
         rclpy.try_shutdown()
     return rows
