@@ -31,6 +31,11 @@ SECTIONS = [
     ("cli_command", "A CLI client command, from process start to exit (issue 12)"),
     ("simulation", "The protocol at fleet scale, simulated: cost vs number of nodes (issue 16)"),
     ("manager_cost", "The manager's CPU per synchronous activation, before/after (issue 16)"),
+    (
+        "participant_cost",
+        "The participants' CPU per synchronous activation: rclpy's executor vs lean spin "
+        "(issue 16)",
+    ),
     ("storm", "A storm of commands from 3 clients: throughput, exactness, memory (issue 16)"),
     ("dashboard", "The dashboard: a switch on the page, and an open page over time (issue 17)"),
 ]

@@ -22,6 +22,7 @@ import argparse
 import json
 import math
 import os
+import signal
 import statistics
 import subprocess
 import sys
@@ -47,21 +48,34 @@ def _cpu_seconds(pid: int) -> float:
 class _System:
     """A manager, its participants and a caller process, on one tree's code."""
 
-    def __init__(self, label: str, tree: Path | None, count: int) -> None:
+    def __init__(
+        self,
+        label: str,
+        tree: Path | None,
+        count: int,
+        lean: bool = False,
+        domain: int | None = None,
+    ) -> None:
         from examples.launch import Launch
 
         extra = before_environment(tree) if tree is not None else {}
         self.label, self.count = label, count
-        self.launch = Launch(DOMAINS[label], grace=5.0, extra_env=extra)
+        self.launch = Launch(
+            DOMAINS[label] if domain is None else domain, grace=5.0, extra_env=extra
+        )
         self.manager = self.launch.start_module(
             "manager", "contextros", "manager", "--recovery-window", "0.3"
         )
         processes = min(NODES_PER_PROCESS, count)
         names = [f"cost_{label}_{count}_n{index:02d}" for index in range(count)]
+        self.workers = []
         for process in range(processes):
             own = names[process::processes]
-            self.launch.start_module(
-                f"worker{process}", "benchmarks.activation", "worker", *own, "--per-node"
+            options = ["--per-node", *(["--lean"] if lean else [])]
+            self.workers.append(
+                self.launch.start_module(
+                    f"worker{process}", "benchmarks.activation", "worker", *own, *options
+                )
             )
         _wait_for_lines(self.launch, "ready", processes)
         self.caller = subprocess.Popen(
@@ -85,20 +99,37 @@ class _System:
         return json.loads(answer)
 
     def idle_rate(self, seconds: float = 1.0) -> float:
-        before = _cpu_seconds(self.manager.pid)
-        time.sleep(seconds)
-        return (_cpu_seconds(self.manager.pid) - before) / seconds
+        return self.idle_rate_of([self.manager.pid], seconds)
 
     def block(self, rounds: int) -> tuple[list[float], float]:
         """`rounds` activations: their `elapsed`, and the manager's CPU per activation."""
-        idle = self.idle_rate(0.5)
-        started, before = time.monotonic(), _cpu_seconds(self.manager.pid)
+        elapsed, cpu = self.block_of([self.manager.pid], rounds)
+        return elapsed, cpu
+
+    def block_of(self, pids: list[int], rounds: int) -> tuple[list[float], float]:
+        """`rounds` activations: their `elapsed`, and the CPU of the processes `pids` per
+        activation, less their idle rate measured just before."""
+        idle = self.idle_rate_of(pids, 0.5)
+        started, before = time.monotonic(), sum(map(_cpu_seconds, pids))
         elapsed = self._ask(f"rounds {rounds}")
-        spent = _cpu_seconds(self.manager.pid) - before
+        spent = sum(map(_cpu_seconds, pids)) - before
         cpu = max(0.0, spent - idle * (time.monotonic() - started)) / rounds
         return elapsed, cpu
 
+    def idle_rate_of(self, pids: list[int], seconds: float) -> float:
+        before = sum(map(_cpu_seconds, pids))
+        time.sleep(seconds)
+        return (sum(map(_cpu_seconds, pids)) - before) / seconds
+
+    def pause(self, paused: bool) -> None:
+        """Stop (SIGSTOP) or continue every process of this system: a paused system uses
+        no CPU while the other one is measured."""
+        for process in [*self.launch.processes.values(), self.caller]:
+            if process.poll() is None:
+                process.send_signal(signal.SIGSTOP if paused else signal.SIGCONT)
+
     def close(self) -> None:
+        self.pause(False)
         if self.caller.poll() is None:
             self.caller.kill()
             self.caller.wait()
