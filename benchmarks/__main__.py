@@ -126,11 +126,23 @@ def _splice(page: str, fresh: str, only: set[str], fresh_head: bool = False) -> 
     head = new_head if fresh_head else head
     titles = {title for name, title in SECTIONS if name in only}
     merged = [
-        new[title] if title in titles and title in new else section
+        _renewed(section, new[title]) if title in titles and title in new else section
         for title, section in old.items()
     ]
     merged += [new[title] for title in new if title in titles and title not in old]
     return head.rstrip() + "\n\n" + "\n".join(s.rstrip() + "\n" for s in merged).rstrip() + "\n"
+
+
+# In a measured section, what follows this line was measured or written by hand (earlier
+# runs, before/after comparisons, explanations): a run renews what comes before it only.
+KEEP = "<!-- by hand: `make bench` renews what is above this line and keeps what follows -->"
+
+
+def _renewed(section: str, fresh: str) -> str:
+    """`fresh` in place of `section`, with what `section` keeps below its KEEP line."""
+    if KEEP not in section:
+        return fresh
+    return fresh.rstrip() + "\n\n" + section[section.index(KEEP) :]
 
 
 if __name__ == "__main__":
