@@ -75,6 +75,20 @@ def _run(
     return time.perf_counter() - started, done.returncode, done.stderr.strip()
 
 
+def _check_served_by_daemon(env: dict[str, str]) -> None:
+    """The daemon row must measure the daemon: a command it answers imports no rclpy."""
+    done = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "contextros", "status"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    imported = {line.rpartition("|")[2].strip() for line in done.stderr.splitlines()}
+    if done.returncode != 0 or "rclpy" in imported:
+        raise RuntimeError(f"the daemon did not answer a command: {done.stderr[-500:]}")
+
+
 def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
     from examples.launch import Launch, ros_environment
 
@@ -102,13 +116,18 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
                 if status == 0:
                     break
                 time.sleep(0.2)
+            _check_served_by_daemon(env)
             layer = "Outdoor"
             commands = {
                 COMMAND: (["activate", "LAYER", "--sync", "--timeout", "5"], env, "contextros"),
-                NO_DAEMON: (["activate", "LAYER", "--sync", "--no-daemon"], env, "contextros"),
+                NO_DAEMON: (
+                    ["activate", "LAYER", "--sync", "--timeout", "5", "--no-daemon"],
+                    env,
+                    "contextros",
+                ),
                 PLAIN: (["plain", "LAYER"], env, "benchmarks.cli_command"),
                 VERSION: (["--version"], env, "contextros"),
-                BEFORE: (["activate", "LAYER", "--sync"], before_env, "contextros"),
+                BEFORE: (["activate", "LAYER", "--sync", "--timeout", "5"], before_env, "contextros"),
             }
             for _ in range(rounds):
                 for case in cases:
@@ -123,7 +142,9 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
                     if "LAYER" in commands[case][0]:  # each command switches
                         layer = "Indoor" if layer == "Outdoor" else "Outdoor"
     finally:
-        _run(["daemon", "stop"], env)
+        _run(["daemon", "stop", "--all"], env)
+        if tree:  # a tree with a daemon of its own started one too
+            _run(["daemon", "stop", "--all"], before_env)
         shutil.rmtree(runtime, ignore_errors=True)
     rows = []
     for case, values in samples.items():

@@ -10,6 +10,7 @@ before: `PYTHONPATH=benchmarks/before_site:TREE/src python benchmarks/hot_path.p
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 import timeit
@@ -18,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 CALLS = 20_000
+HOT_PATH_DOMAIN_ID = 87
 LOCATION_LAYERS = Path(__file__).resolve().parent.parent / "examples/cleaner/location.layers"
 REPEATS = 5
 
@@ -73,7 +75,9 @@ def wake_up_rows(seconds: float = 3.0) -> list[tuple[str, float]]:
     from contextros.ros import ContextNode
     from contextros.ros.wait_loop import WaitLoop
 
-    rclpy.init()
+    # A domain of its own, on this host only: its context nodes must meet no manager.
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    rclpy.init(domain_id=HOT_PATH_DOMAIN_ID)
     rows = []
     try:
         node = Node("hot_path_wake_up", start_parameter_services=False)

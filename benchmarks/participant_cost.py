@@ -27,7 +27,7 @@ from benchmarks.manager_cost import BLOCK, _System
 NODE_COUNTS = (16, 64)
 SETTLE = 1.0  # after the other system is paused and this one continued
 ROUNDS = 40
-DOMAINS = {"rclpy executor": 83, "lean spin": 84}
+DOMAINS = {"rclpy executor": 85, "lean spin": 86}
 LABELS = {"rclpy executor": "executor", "lean spin": "lean"}  # in node names
 
 

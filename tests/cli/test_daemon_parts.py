@@ -14,6 +14,7 @@ import pytest
 from contextros.cli.daemon import client
 from contextros.cli.daemon.place import (
     PlaceError,
+    daemon_place,
     environment_key,
     private_directory,
     runtime_directory,
@@ -78,6 +79,18 @@ def test_a_command_does_without_a_daemon_whose_directory_is_not_private(
     monkeypatch.delenv("CONTEXTROS_NO_DAEMON", raising=False)
     assert client.answer_for({"command": "status"}, 1.0) is None
     assert list(shared.iterdir()) == []  # nothing started, nothing written
+
+
+def test_a_directory_too_deep_for_a_socket_is_refused_and_the_command_goes_on(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    deep = tmp_path / ("d" * 100)
+    monkeypatch.setenv("CONTEXTROS_RUNTIME_DIR", str(deep))
+    monkeypatch.delenv("CONTEXTROS_NO_DAEMON", raising=False)
+    with pytest.raises(PlaceError, match="too long a path for the daemon's socket"):
+        daemon_place()
+    assert client.answer_for({"command": "status"}, 1.0) is None
+    assert not deep.exists()
 
 
 def test_the_variable_turns_the_daemon_off(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -145,7 +158,7 @@ def test_each_bad_field_is_named(change: dict[str, Any], named: str) -> None:
 
 
 def test_a_missing_field_is_named() -> None:
-    for field in ("on", "sync", "timeout", "expect_count", "reason", "wait_manager"):
+    for field in ("on", "sync", "timeout", "expect_count", "reason", "wait_manager", "namespace"):
         request = {k: v for k, v in ACTIVATE.items() if k != field}
         problem = request_problem(request)
         assert problem is not None and field in problem, (field, problem)
@@ -172,6 +185,13 @@ def test_receive_takes_one_json_object_within_its_limit() -> None:
         _received(b'{"a": 1}')
     with pytest.raises(WireError, match="over 100 bytes"):
         _received(b"{" + b" " * 200_000 + b"}\n", limit=100)
+    with pytest.raises(WireError, match="over 100 bytes"):  # in one chunk with its newline
+        _received(b"{" + b" " * 150 + b"}\n", limit=100)
+    left, right = socket.socketpair()
+    with left, right:
+        left.sendall(b'{"slow": ')  # and nothing more
+        with pytest.raises(WireError, match=r"no whole message within 0.2 s"):
+            receive(right, within=0.2)
 
 
 def test_a_result_becomes_the_json_the_command_line_prints() -> None:

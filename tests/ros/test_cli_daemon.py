@@ -19,7 +19,8 @@ from pathlib import Path
 
 import pytest
 
-from contextros.cli.daemon.place import DaemonPlace, environment_key
+from contextros.cli.daemon import client
+from contextros.cli.daemon.place import DaemonPlace, daemon_place, environment_key
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
 from tests.ros.system import RunningSystem, settle, start_system
@@ -32,7 +33,7 @@ def runtime() -> Iterator[Path]:
     try:
         yield directory
     finally:
-        contextros("daemon", "stop", runtime=directory)
+        contextros("daemon", "stop", "--all", runtime=directory)
         shutil.rmtree(directory, ignore_errors=True)
 
 
@@ -140,9 +141,10 @@ def test_concurrent_commands_are_all_answered(daemon: Path) -> None:
 
 def test_bad_requests_on_the_socket_are_refused_and_the_daemon_serves_on(daemon: Path) -> None:
     place = DaemonPlace(daemon, environment_key(dict(os.environ)))
+    # Not a JSON object: the connection is dropped. A JSON object: refused, saying why.
+    for line in (b"not json\n", b"[1, 2]\n"):
+        assert _exchange(place, line) is None
     bad = [
-        b"not json\n",
-        b"[1, 2]\n",
         b'{"protocol": 1, "command": "reboot"}\n',
         b'{"protocol": 2, "command": "ping"}\n',
         b'{"protocol": 1, "command": "activate", "namespace": null, "wait_manager": 1,'
@@ -150,10 +152,12 @@ def test_bad_requests_on_the_socket_are_refused_and_the_daemon_serves_on(daemon:
         b' "timeout": 0, "expect_count": 0, "reason": "", "requester": ""}\n',
         b'{"protocol": 1, "command": "status", "namespace": "no/slash", "wait_manager": 1}\n',
         b'{"protocol": 1, "command": "status", "namespace": null, "wait_manager": 1e400}\n',
+        b'{"protocol": 1, "command": "status", "wait_manager": 1}\n',
     ]
     for line in bad:
         answer = _exchange(place, line)
-        assert answer is None or answer["outcome"] == "refused", (line, answer)
+        assert answer is not None and answer["outcome"] == "refused", (line, answer)
+        assert "invalid request" in str(answer["message"])
     # Too long, and a peer that sends half a request and goes: the connection is dropped.
     assert _exchange(place, b"{" + b" " * (70 * 1024)) is None
     assert _exchange(place, b'{"protocol": 1') is None
@@ -186,6 +190,41 @@ def test_stop_ends_the_daemon_and_the_next_command_answers_by_itself(daemon: Pat
     wait_until(lambda: daemon_running(daemon), 20, "no daemon started again")
 
 
+def test_another_domain_reaches_no_daemon_of_this_one(daemon: Path) -> None:
+    env = dict(os.environ, CONTEXTROS_RUNTIME_DIR=str(daemon))
+    env["ROS_DOMAIN_ID"] = str((int(env.get("ROS_DOMAIN_ID", "0")) + 100) % 232)
+    done = subprocess.run(
+        [sys.executable, "-m", "contextros", "daemon", "status"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=60,
+    )
+    assert done.returncode == 1 and "no daemon serves this environment" in done.stdout
+    assert daemon_running(daemon)  # this domain's still serves
+
+
+def test_a_daemon_stopped_while_it_starts_stops(
+    system: RunningSystem, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """`contextros activate X; contextros daemon stop` in a script: the daemon the first
+    command started may still be starting when the stop comes; it is stopped all the same
+    (here the stop comes right after the start, before the daemon even holds its lock)."""
+    runtime = Path(tempfile.mkdtemp(prefix="crd-stop-"))
+    monkeypatch.setenv("CONTEXTROS_RUNTIME_DIR", str(runtime))
+    place = daemon_place()
+    try:
+        assert client.spawn(place)
+        outcome = client.stop(place)
+        assert outcome is not None and outcome[1], outcome
+        assert client.ping(place) is None
+        time.sleep(1.0)
+        assert client.ping(place) is None and not client.starting(place)
+    finally:
+        contextros("daemon", "stop", "--all", runtime=runtime)
+        shutil.rmtree(runtime, ignore_errors=True)
+
+
 def test_an_idle_daemon_stops_by_itself(system: RunningSystem) -> None:
     runtime = Path(tempfile.mkdtemp(prefix="crd-idle-"))
     try:
@@ -196,5 +235,5 @@ def test_an_idle_daemon_stops_by_itself(system: RunningSystem) -> None:
         wait_until(lambda: not daemon_running(runtime), 15, f"it did not stop: {log.read_text()}")
         assert "idle for 1 s" in log.read_text()
     finally:
-        contextros("daemon", "stop", runtime=runtime)
+        contextros("daemon", "stop", "--all", runtime=runtime)
         shutil.rmtree(runtime, ignore_errors=True)

@@ -209,3 +209,62 @@ def test_a_qos_event_is_taken_and_its_callback_run(context: Context) -> None:
     assert time.monotonic() - started >= 0.15
     loop.shutdown()
     node.destroy_node()
+
+
+def test_timer_info_coroutine_guards_and_an_event_of_a_destroyed_entity(
+    context: Context,
+) -> None:
+    """What rclpy's executor does, the loop does too: a timer callback taking a `TimerInfo`
+    gets one; a coroutine guard-condition callback is refused by name; a QoS event whose
+    subscription a callback destroyed in the same wake-up is let go, not raised."""
+    from rclpy.event_handler import SubscriptionEventCallbacks
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from rclpy.timer import TimerInfo
+
+    node = Node("wait_loop_timer_info", context=context)
+    infos: list[TimerInfo] = []
+
+    def on_tick(info: TimerInfo) -> None:
+        infos.append(info)
+
+    node.create_timer(0.001, on_tick)  # type: ignore[arg-type]
+    loop = WaitLoop([node], context=context)
+    deadline = time.monotonic() + 5.0
+    while not infos and time.monotonic() < deadline:
+        loop.spin_once(0.05)
+    assert infos and infos[0].actual_call_time.nanoseconds > 0
+    loop.shutdown()
+    node.destroy_node()
+
+    async def on_guard() -> None:
+        pass
+
+    node = Node("wait_loop_async_guard", context=context)
+    node.create_guard_condition(on_guard)  # type: ignore[arg-type]
+    with pytest.raises(UnsupportedEntityError, match=r"the guard condition has a coroutine"):
+        WaitLoop([node], context=context).spin_once(0.0)
+    node.destroy_node()
+
+    node = Node("wait_loop_event_destroyed", context=context)
+    events: list[object] = []
+    reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    best_effort = QoSProfile(depth=10, reliability=ReliabilityPolicy.BEST_EFFORT)
+    subscription = node.create_subscription(
+        String,
+        "wait_loop/event_destroyed",
+        lambda m: None,
+        reliable,
+        event_callbacks=SubscriptionEventCallbacks(incompatible_qos=events.append),
+    )
+    node.create_publisher(String, "wait_loop/event_destroyed", best_effort)
+    # Ready in the same wake-up as the event (nothing spun meanwhile): a timer that destroys
+    # the subscription, run first (timers before waitables).
+    node.create_timer(0.001, lambda: node.destroy_subscription(subscription))
+    time.sleep(0.5)
+    loop = WaitLoop([node], context=context)
+    loop.spin_once(0.0)
+    for _ in range(5):
+        loop.spin_once(0.01)  # goes on without the destroyed subscription and its events
+    assert not list(node.subscriptions) and not events
+    loop.shutdown()
+    node.destroy_node()

@@ -38,8 +38,16 @@ def register(commands: Any) -> None:
         metavar="NS",
         help="discover the manager in this namespace at start (default /)",
     )
+    # The key of the environment a command started the daemon for (it serves no other).
+    start.add_argument("--expect-key", help=argparse.SUPPRESS)
     start.set_defaults(run=run_start)
     stop = verbs.add_parser("stop", help="stop the daemon for this ROS environment")
+    stop.add_argument(
+        "--all",
+        action="store_true",
+        help="stop every daemon of this user's directory, whatever its environment (one "
+        "left by another domain, or by ContextROS's code before a change)",
+    )
     stop.set_defaults(run=run_stop)
     status = verbs.add_parser("status", help="say whether a daemon serves this environment")
     status.set_defaults(run=run_status)
@@ -63,12 +71,15 @@ def run_start(args: argparse.Namespace) -> int:
     if args.foreground:
         from contextros.cli.daemon.server import serve
 
-        return serve(place, args.idle_timeout, args.warm_namespace)
-    pong = client.start(place, args.warm_namespace, args.idle_timeout)
+        return serve(place, args.idle_timeout, args.warm_namespace, args.expect_key)
+    running = client.ping(place)
+    pong = running or client.start(place, args.warm_namespace, args.idle_timeout)
     if pong is None:
         print(f"contextros daemon: it did not start; see {place.log}", file=sys.stderr)
         return 1
     print(f"daemon {pong['pid']} serves {place.socket}")
+    if running:
+        print("(it was running: its idle timeout is unchanged; `contextros daemon stop` first)")
     return 0
 
 
@@ -81,9 +92,23 @@ def run_stop(args: argparse.Namespace) -> int:
     except PlaceError as error:
         print(f"contextros daemon: {error}", file=sys.stderr)
         return 1
-    pid = client.stop(place)
-    print(f"daemon {pid} stopped" if pid else "no daemon serves this environment")
-    return 0
+    from contextros.cli.daemon.place import places
+
+    status = 0
+    targets = places(place.directory) if args.all else [place]
+    stopped = [(target, client.stop(target)) for target in targets]
+    for target, outcome in stopped:
+        if outcome is None:
+            continue
+        pid, gone = outcome
+        if gone:
+            print(f"daemon {pid} stopped ({target.socket})")
+        else:
+            print(f"contextros daemon: daemon {pid} did not stop in time", file=sys.stderr)
+            status = 1
+    if all(outcome is None for _, outcome in stopped):
+        print("no daemon serves " + ("this user" if args.all else "this environment"))
+    return status
 
 
 def run_status(args: argparse.Namespace) -> int:

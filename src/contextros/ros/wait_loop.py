@@ -41,6 +41,7 @@ from rclpy.exceptions import InvalidHandle
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.subscription import Subscription
+from rclpy.timer import TimerInfo
 from rclpy.utilities import get_default_context, timeout_sec_to_nsec
 
 # Requests (responses) taken from one service (client) per wake-up at most.
@@ -72,6 +73,7 @@ class WaitLoop:
         self._event_handlers: list[Any] = []
         self._event_handles: list[Any] = []
         self._event_indices: list[int] = []
+        self._timer_info_arguments: dict[Any, str] = {}
         # Ready entities run kind by kind, in this order (as rclpy's executor orders them).
         self._runners: tuple[tuple[str, Callable[[Any], None]], ...] = (
             ("timer", self._run_timer),
@@ -123,7 +125,12 @@ class WaitLoop:
                 finally:
                     handle.__exit__(None, None, None)
         for waitable in ready_waitables:
-            _run_to_completion(waitable.execute(waitable.take_data()))
+            try:
+                data = waitable.take_data()
+            except InvalidHandle:  # its entity was destroyed by a callback of this wake-up
+                self._entities = ()
+                continue
+            _run_to_completion(waitable.execute(data))
 
     def _fill(self) -> None:
         """The wait set, cleared and given every entity again (rcl_wait empties it), one
@@ -200,21 +207,33 @@ class WaitLoop:
         ):
             self._handles[kind] = [entity.handle for entity in members]
             self._by_pointer[kind] = {entity.handle.pointer: entity for entity in members}
+        self._timer_info_arguments = {
+            timer: argument for timer in timers if (argument := _timer_info_argument(timer))
+        }
         events = [(w, event) for w in waitables if (event := _event_handle(w)) is not None]
         self._event_handlers = [handler for handler, _ in events]
         self._event_handles = [event for _, event in events]
         self._waitables = [w for w in waitables if _event_handle(w) is None]
 
-    @staticmethod
-    def _run_timer(timer: Any) -> None:
+    def _run_timer(self, timer: Any) -> None:
         if not timer.handle.is_timer_ready():
             return
+        info_argument = self._timer_info_arguments.get(timer)
         try:
-            timer.handle.call_timer()
+            info = timer.handle.call_timer_with_info()
         except Exception:  # a timer cancelled meanwhile (rclpy's TimerCancelledError)
             return
-        if timer.callback:
+        if not timer.callback:
+            return
+        if info_argument is None:
             timer.callback()
+        else:  # a callback taking a TimerInfo, as rclpy's executor gives it
+            timer_info = TimerInfo(
+                expected_call_time=info["expected_call_time"],
+                actual_call_time=info["actual_call_time"],
+                clock_type=timer.clock.clock_type,
+            )
+            timer.callback(**{info_argument: timer_info})
 
     @staticmethod
     def _run_guard(guard: Any) -> None:
@@ -263,22 +282,38 @@ class UnsupportedEntityError(TypeError):
     """A node has what `WaitLoop` cannot run: spin it with rclpy's executor."""
 
 
+_KIND_NAMES = {
+    "subscriptions": "subscription",
+    "timers": "timer",
+    "services": "service",
+    "guards": "guard condition",
+}
+
+
 def _check_supported(nodes: Sequence[Node]) -> None:
     """Refuse, naming the node and the entity, what this loop would silently not run:
     coroutine callbacks (nothing awaits them here) and waitables other than QoS event
     handlers (an action server's or client's `execute` awaits its goals)."""
     for node in nodes:
-        for kind in ("subscriptions", "timers", "services"):
+        for kind in ("subscriptions", "timers", "services", "guards"):
             for entity in getattr(node, kind):
                 if inspect.iscoroutinefunction(entity.callback):
-                    what = getattr(entity, "topic_name", None) or getattr(entity, "srv_name", "")
+                    name = getattr(entity, "topic_name", None) or getattr(entity, "srv_name", "")
+                    what = f"{_KIND_NAMES[kind]} {name}".rstrip()
                     raise UnsupportedEntityError(
-                        f"node {node.get_fully_qualified_name()}: the {kind[:-1]} "
-                        f"{what or '(timer)'} has a coroutine callback, which WaitLoop does "
-                        "not await; spin this node with rclpy's executor (spin_nodes(..., "
-                        "lean=False))"
+                        f"node {node.get_fully_qualified_name()}: the {what} has a coroutine "
+                        "callback, which WaitLoop does not await; spin this node with rclpy's "
+                        "executor (spin_nodes(..., lean=False))"
                     )
         for waitable in node.waitables:
+            if isinstance(waitable, EventHandler) and inspect.iscoroutinefunction(
+                waitable.callback
+            ):
+                raise UnsupportedEntityError(
+                    f"node {node.get_fully_qualified_name()}: a QoS event handler has a "
+                    "coroutine callback, which WaitLoop does not await; spin this node with "
+                    "rclpy's executor (spin_nodes(..., lean=False))"
+                )
             if not isinstance(waitable, EventHandler):
                 raise UnsupportedEntityError(
                     f"node {node.get_fully_qualified_name()}: WaitLoop runs only QoS event "
@@ -304,6 +339,17 @@ def _usable(
 def consume(iterator: Iterable[Any]) -> None:
     """Run an iterator through, in C (the `map`s of `_fill`)."""
     deque(iterator, maxlen=0)
+
+
+def _timer_info_argument(timer: Any) -> str | None:
+    """The parameter of `timer`'s callback annotated `TimerInfo`, if any (rclpy's rule)."""
+    if timer.callback is None:
+        return None
+    try:
+        parameters = inspect.signature(timer.callback).parameters.values()
+    except (TypeError, ValueError):
+        return None
+    return next((p.name for p in parameters if p.annotation == TimerInfo), None)
 
 
 def _event_handle(waitable: Any) -> Any:

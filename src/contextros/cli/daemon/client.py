@@ -12,6 +12,7 @@ import socket
 import sys
 import time
 from importlib.util import find_spec
+from pathlib import Path
 from typing import Any
 
 from contextros.cli.daemon.place import DaemonPlace, PlaceError, daemon_place
@@ -19,26 +20,46 @@ from contextros.cli.daemon.wire import PROTOCOL, WireError, receive, send
 
 DISABLE_VARIABLE = "CONTEXTROS_NO_DAEMON"
 START_WAIT = 15.0
+STOP_WAIT = 20.0
+CONNECT_TIMEOUT = 2.0
+# A daemon is started at most this often by commands (one that fails at start-up is not
+# started again by every command).
+SPAWN_PAUSE = 10.0
+
+
+class DaemonUnreachable(Exception):
+    """Nothing was sent: no daemon listens, or its socket cannot be reached."""
+
+    def __init__(self, message: str, start_one: bool) -> None:
+        super().__init__(message)
+        self.start_one = start_one  # no daemon listens: one may be started
 
 
 class DaemonLost(Exception):
-    """The daemon took the request but gave no answer."""
+    """The daemon took the whole request but gave no answer: what it did is unknown."""
 
 
 def wanted(environ: dict[str, str] | os._Environ[str] = os.environ) -> bool:
     return environ.get(DISABLE_VARIABLE, "").lower() not in ("1", "true", "yes", "on")
 
 
-def ask(place: DaemonPlace, request: dict[str, Any], timeout: float) -> dict[str, Any] | None:
-    """The daemon's answer to `request`, or None when no daemon listens at `place`."""
+def ask(place: DaemonPlace, request: dict[str, Any], timeout: float) -> dict[str, Any]:
+    """The daemon's answer to `request`. DaemonUnreachable if it was not sent whole (the
+    daemon then does nothing), DaemonLost if it was and no answer came."""
     with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as connection:
+        connection.settimeout(CONNECT_TIMEOUT)
         try:
             connection.connect(str(place.socket))
-        except (FileNotFoundError, ConnectionRefusedError):
-            return None
+        except (FileNotFoundError, ConnectionRefusedError) as error:
+            raise DaemonUnreachable(str(error), start_one=True) from error
+        except OSError as error:
+            raise DaemonUnreachable(str(error), start_one=False) from error
+        try:
+            send(connection, {"protocol": PROTOCOL, **request})
+        except OSError as error:  # a part of a request is no request (the daemon drops it)
+            raise DaemonUnreachable(str(error), start_one=False) from error
         try:
             connection.settimeout(timeout)
-            send(connection, {"protocol": PROTOCOL, **request})
             return receive(connection)
         except (OSError, WireError) as error:
             raise DaemonLost(str(error) or type(error).__name__) from error
@@ -59,29 +80,57 @@ def starting(place: DaemonPlace) -> bool:
 
 def spawn(
     place: DaemonPlace, namespace: str | None = None, idle_timeout: float | None = None
-) -> None:
-    """Start a daemon in the background, detached from this command and its terminal."""
+) -> bool:
+    """Start a daemon in the background, detached from this command and its terminal and
+    writing to its log; whether it was started."""
     import subprocess
 
     command = [sys.executable, "-m", "contextros", "daemon", "start", "--foreground"]
+    command += ["--expect-key", place.key]  # it serves only the environment asked for
     if namespace:
         command += ["--warm-namespace", namespace]
     if idle_timeout is not None:
         command += ["--idle-timeout", repr(idle_timeout)]
-    with open(place.log, "w") as log:
-        subprocess.Popen(
-            command,
-            stdin=subprocess.DEVNULL,
-            stdout=log,
-            stderr=subprocess.STDOUT,
-            close_fds=True,
-            start_new_session=True,
-        )
+    try:
+        with open(place.log, "a") as log:  # the daemon empties it once it holds the lock
+            daemon = subprocess.Popen(
+                command,
+                stdin=subprocess.DEVNULL,
+                stdout=log,
+                stderr=subprocess.STDOUT,
+                close_fds=True,
+                start_new_session=True,
+            )
+        place.pid_file.write_text(str(daemon.pid))
+    except OSError:
+        return False
+    return True
+
+
+def _spawned_alive(place: DaemonPlace) -> bool:
+    """Whether the daemon last started here is still alive (it may not hold the lock yet)."""
+    try:
+        pid = int(place.pid_file.read_text())
+        command = Path(f"/proc/{pid}/cmdline").read_bytes()
+    except (OSError, ValueError):
+        return False
+    return b"daemon\0start" in command and place.key.encode() in command
+
+
+def _started_lately(place: DaemonPlace) -> bool:
+    try:
+        return time.time() - place.log.stat().st_mtime < SPAWN_PAUSE
+    except OSError:
+        return False
 
 
 def answer_for(request: dict[str, Any], timeout: float) -> dict[str, Any] | None:
     """What the daemon answers, or None: the command asks the manager itself (no daemon
-    yet: one is started for the next command; or it is busy, or gave no answer)."""
+    yet: one is started for the next command; or it is busy, or unreachable).
+
+    A daemon that took an activation and gave no answer is not asked again, nor is the
+    manager: the command may have been carried out, or may still be. The answer is then a
+    failure that says so; a status, which changes nothing, is asked of the manager."""
     if not wanted():
         return None
     try:
@@ -90,17 +139,21 @@ def answer_for(request: dict[str, Any], timeout: float) -> dict[str, Any] | None
         return None
     try:
         answer = ask(place, request, timeout)
+    except DaemonUnreachable as error:
+        if error.start_one and find_spec("rclpy") is not None:
+            if not starting(place) and not _started_lately(place):
+                spawn(place, request.get("namespace"))
+        return None
     except DaemonLost as error:
-        print(
-            f"contextros: the daemon gave no answer ({error}); asking the manager directly "
-            f"(its log: {place.log})",
-            file=sys.stderr,
-        )
-        return None
-    if answer is None:
-        if not starting(place) and find_spec("rclpy") is not None:
-            spawn(place, request.get("namespace"))
-        return None
+        lost = f"the daemon took the command and gave no answer ({error}; its log: {place.log})"
+        if request["command"] == "status":
+            print(f"contextros: {lost}; asking the manager directly", file=sys.stderr)
+            return None
+        return {
+            "outcome": "failed",
+            "message": f"{lost}: whether it was carried out is unknown; see `contextros "
+            "status`, and `--no-daemon` to do without the daemon",
+        }
     if answer.get("outcome") in ("busy", "refused"):
         return None
     return answer
@@ -109,7 +162,7 @@ def answer_for(request: dict[str, Any], timeout: float) -> dict[str, Any] | None
 def ping(place: DaemonPlace) -> dict[str, Any] | None:
     try:
         return ask(place, {"command": "ping"}, 5.0)
-    except DaemonLost:
+    except (DaemonUnreachable, DaemonLost):
         return None
 
 
@@ -121,7 +174,11 @@ def start(
         return pong
     if not starting(place):
         spawn(place, namespace, idle_timeout)
-    deadline = time.monotonic() + START_WAIT
+    return _wait_for_pong(place, START_WAIT)
+
+
+def _wait_for_pong(place: DaemonPlace, seconds: float) -> dict[str, Any] | None:
+    deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         if pong := ping(place):
             return pong
@@ -129,19 +186,33 @@ def start(
     return None
 
 
-def stop(place: DaemonPlace) -> int | None:
-    """Stop the daemon at `place` and wait until it has gone; its pid, or None if none ran."""
+def stop(place: DaemonPlace) -> tuple[int, bool] | None:
+    """Stop the daemon at `place` (one still starting too) and wait until it has gone:
+    (its pid, whether it went within STOP_WAIT), or None if none runs."""
+    if not starting(place) and not _spawned_alive(place):
+        return None
+    # Running or starting: wait until it listens (a starting one would serve for its whole
+    # idle timeout otherwise).
+    if _wait_for_pong(place, START_WAIT) is None:
+        return None
     try:
         answer = ask(place, {"command": "stop"}, 5.0)
-    except DaemonLost:
-        answer = None
-    if answer is None:
+    except (DaemonUnreachable, DaemonLost):
         return None
-    deadline = time.monotonic() + START_WAIT
+    deadline = time.monotonic() + STOP_WAIT
     while starting(place) and time.monotonic() < deadline:
         time.sleep(0.05)
     pid: int = answer.get("pid", 0)
-    return pid
+    return pid, not starting(place)
 
 
-__all__ = ["DaemonLost", "PlaceError", "answer_for", "daemon_place", "start", "stop", "wanted"]
+__all__ = [
+    "DaemonLost",
+    "DaemonUnreachable",
+    "PlaceError",
+    "answer_for",
+    "daemon_place",
+    "start",
+    "stop",
+    "wanted",
+]

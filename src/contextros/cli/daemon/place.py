@@ -17,7 +17,23 @@ from pathlib import Path
 import contextros
 
 # The variables that change what a ROS participant discovers, or how it talks.
-_ROS_PREFIXES = ("ROS_", "RMW_", "FASTDDS_", "FASTRTPS_", "CYCLONEDDS_", "ZENOH_")
+_ROS_PREFIXES = (
+    "ROS_",
+    "RMW_",
+    "FASTDDS_",
+    "FASTRTPS_",
+    "SKIP_DEFAULT_XML_FILE",
+    "CYCLONEDDS_",
+    "ZENOH_",
+    "NDDS_",
+    "CONNEXTDDS_",
+    "GURUMDDS_",
+)
+# Fast DDS also reads this profile from the working directory (the daemon keeps the working
+# directory of the command that started it).
+_CWD_PROFILE = "DEFAULT_FASTDDS_PROFILES.xml"
+# A socket's path is at most this long (sockaddr_un's sun_path, less its terminator).
+MAX_SOCKET_PATH = 107
 # (Not LD_LIBRARY_PATH: the ROS wheels' bootstrapper rewrites it, in no fixed order, in
 # every interpreter; the interpreter and the package's path already name the installation.)
 _OTHER_VARIABLES = ("AMENT_PREFIX_PATH", "PYTHONPATH")
@@ -50,6 +66,11 @@ class DaemonPlace:
     def log(self) -> Path:
         return self.directory / f"daemon-{self.key}.log"
 
+    @property
+    def pid_file(self) -> Path:
+        """The pid of the daemon a command started last (until it holds the lock)."""
+        return self.directory / f"daemon-{self.key}.pid"
+
 
 def environment_key(environ: dict[str, str] | os._Environ[str] = os.environ) -> str:
     """A short digest of what makes one daemon unfit for another environment."""
@@ -65,6 +86,17 @@ def environment_key(environ: dict[str, str] | os._Environ[str] = os.environ) -> 
         for name, value in environ.items()
         if name.startswith(_ROS_PREFIXES) or name in _OTHER_VARIABLES
     )
+    # The network the participant would join: a command in another network namespace (`ip
+    # netns exec`, a container sharing /tmp) reaches a daemon of its own.
+    try:
+        parts.append(f"netns={os.readlink('/proc/self/ns/net')}")
+    except OSError:
+        pass
+    try:
+        profile = Path(_CWD_PROFILE).resolve()
+        parts.append(f"{profile}:{profile.stat().st_mtime_ns}")
+    except OSError:
+        pass  # none here (the common case)
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
 
 
@@ -72,9 +104,17 @@ def runtime_directory(environ: dict[str, str] | os._Environ[str] = os.environ) -
     """$CONTEXTROS_RUNTIME_DIR, else $XDG_RUNTIME_DIR/contextros, else /tmp/contextros-UID."""
     if chosen := environ.get(RUNTIME_VARIABLE):
         return Path(chosen)
-    if xdg := environ.get("XDG_RUNTIME_DIR"):
+    xdg = environ.get("XDG_RUNTIME_DIR")
+    if xdg and _owned(Path(xdg)):  # not a directory kept by `sudo -E` from another user
         return Path(xdg) / "contextros"
     return Path("/tmp") / f"contextros-{os.getuid()}"
+
+
+def _owned(path: Path) -> bool:
+    try:
+        return path.stat().st_uid == os.getuid()
+    except OSError:
+        return False
 
 
 def private_directory(path: Path) -> Path:
@@ -96,5 +136,21 @@ def private_directory(path: Path) -> Path:
 
 
 def daemon_place(environ: dict[str, str] | os._Environ[str] = os.environ) -> DaemonPlace:
-    """The daemon for this environment; PlaceError if its directory is not private."""
-    return DaemonPlace(private_directory(runtime_directory(environ)), environment_key(environ))
+    """The daemon for this environment; PlaceError if its directory is not private, or
+    too deep for a socket."""
+    place = DaemonPlace(runtime_directory(environ), environment_key(environ))
+    if len(os.fsencode(place.socket)) > MAX_SOCKET_PATH:
+        raise PlaceError(
+            f"{place.directory} is too long a path for the daemon's socket (at most "
+            f"{MAX_SOCKET_PATH} bytes with its name); set {RUNTIME_VARIABLE} to a shorter one"
+        )
+    private_directory(place.directory)
+    return place
+
+
+def places(directory: Path) -> list[DaemonPlace]:
+    """Every daemon with a socket in `directory` (whatever its environment)."""
+    return [
+        DaemonPlace(directory, path.stem.removeprefix("daemon-"))
+        for path in sorted(directory.glob("daemon-*.sock"))
+    ]

@@ -8,6 +8,7 @@ lock for its whole life, so a second one started by a racing command exits at on
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import itertools
 import os
@@ -20,7 +21,7 @@ import time
 import traceback
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
-from typing import TYPE_CHECKING, Any
+from typing import IO, TYPE_CHECKING, Any
 
 from contextros.cli.daemon.place import DaemonPlace
 from contextros.cli.daemon.wire import (
@@ -32,6 +33,7 @@ from contextros.cli.daemon.wire import (
     send,
 )
 from contextros.errors import LayerError
+from contextros.identity import default_requester
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -58,8 +60,10 @@ class DaemonServer:
         place: DaemonPlace,
         idle_timeout: float = DEFAULT_IDLE_TIMEOUT,
         warm_namespace: str | None = None,
+        expected_key: str | None = None,
     ) -> None:
         self.place = place
+        self.expected_key = expected_key
         self.idle_timeout = idle_timeout
         self.warm_namespace = warm_namespace
         self._stop = threading.Event()
@@ -70,16 +74,28 @@ class DaemonServer:
         self._slots = threading.BoundedSemaphore(MAX_CONNECTIONS)
         self._busy = 0
         self._last_activity = time.monotonic()
+        self._socket_inode = -1
 
     def run(self) -> int:
         """Serve until stopped, idle for `idle_timeout` (0: never) or signalled."""
         with ExitStack() as stack:
-            lock = stack.enter_context(open(self.place.lock, "w"))
-            try:
-                fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except BlockingIOError:
+            lock = stack.enter_context(open(self.place.lock, "a"))
+            if not _take_lock(lock):
                 log(f"another daemon serves {self.place.socket}")
                 return 0
+            if self.expected_key is not None:  # started by a command
+                if self.place.key != self.expected_key:
+                    log(
+                        f"not serving: this daemon's code or environment differs from the "
+                        f"command's (key {self.place.key}, the command's {self.expected_key})"
+                    )
+                    return 1
+                _restart_log()
+            from contextros.installation import ros_problem
+
+            if problem := ros_problem():
+                log(f"not serving: {problem}")
+                return 1
             from contextros.cli.ros_commands import use_packaged_profile
 
             use_packaged_profile("client_discovery.xml")
@@ -92,6 +108,9 @@ class DaemonServer:
                 signal.signal(signum, lambda *_: self._stop.set())
             listener = stack.enter_context(self._listen())
             workers = stack.enter_context(ThreadPoolExecutor(WORKERS, "contextros-daemon"))
+            # On the way out ROS shuts down before the workers are joined: a command still
+            # waiting (for the manager, for acknowledgements) ends now, not at its deadline.
+            stack.callback(rclpy.try_shutdown)
             workers.submit(self._warm_up)
             domain = os.environ.get("ROS_DOMAIN_ID", "0")
             log(f"serving {self.place.socket} (ROS_DOMAIN_ID={domain})")
@@ -107,6 +126,7 @@ class DaemonServer:
         os.chmod(path, 0o600)
         listener.listen(MAX_CONNECTIONS)
         listener.settimeout(0.5)
+        self._socket_inode = path.stat().st_ino
         return listener
 
     def _serve(self, listener: socket.socket, workers: ThreadPoolExecutor) -> None:
@@ -114,6 +134,9 @@ class DaemonServer:
             while not self._stop.is_set():
                 if self._idle():
                     log(f"idle for {self.idle_timeout:g} s")
+                    return
+                if not self._socket_is_ours():
+                    log(f"{self.place.socket} was removed or replaced")
                     return
                 try:
                     connection, _ = listener.accept()
@@ -127,8 +150,17 @@ class DaemonServer:
                     continue
                 workers.submit(self._handle, connection)
         finally:
-            # No new command from here on; the ones in flight finish (the pool waits).
-            self.place.socket.unlink(missing_ok=True)
+            # No new command from here on; the ones in flight end (see run).
+            if self._socket_is_ours():
+                self.place.socket.unlink(missing_ok=True)
+
+    def _socket_is_ours(self) -> bool:
+        """Whether the place's socket is still the one this daemon listens on (a removed
+        directory, or another daemon's socket, ends this one)."""
+        try:
+            return self.place.socket.stat().st_ino == self._socket_inode
+        except OSError:
+            return False
 
     def _idle(self) -> bool:
         with self._lock:
@@ -148,8 +180,7 @@ class DaemonServer:
         counted = False
         try:
             with connection:
-                connection.settimeout(READ_TIMEOUT)
-                request = receive(connection, MAX_REQUEST)
+                request = receive(connection, MAX_REQUEST, within=READ_TIMEOUT)
                 # Looking at the daemon (ping) neither keeps it alive nor holds its exit.
                 if request.get("command") != "ping":
                     counted = True
@@ -161,7 +192,7 @@ class DaemonServer:
                 send(connection, answer)
         except (OSError, WireError) as error:
             log(f"a connection failed: {error}")
-        except Exception:  # a bug must not end the daemon: the command asks directly
+        except Exception:  # a bug, or ROS shut down under a command by a stop: logged
             log(f"a command failed:\n{traceback.format_exc()}")
         finally:
             if counted:
@@ -191,8 +222,7 @@ class DaemonServer:
                 return {"outcome": "registry", "registry": registry_to_dict(client.query())}
         except LayerError as error:
             return {"outcome": "no_manager", "message": str(error)}
-        if request["requester"]:
-            client.requester = request["requester"]
+        client.requester = request["requester"] or default_requester()
         try:
             result = client.request(
                 request["on"],
@@ -215,6 +245,7 @@ class DaemonServer:
         from contextros.ros import LayerClient
         from contextros.ros.client import quiet_node
 
+        namespace = None if namespace in ("", "/") else namespace  # one node for the root
         clients: dict[str | None, LayerClient] = self._local.__dict__.setdefault("clients", {})
         if namespace not in clients:
             if len(clients) >= MAX_NAMESPACES:
@@ -237,8 +268,33 @@ class DaemonServer:
     def _destroy_nodes(self) -> None:
         with self._lock:
             for node in self._nodes:
-                node.destroy_node()
+                with contextlib.suppress(Exception):  # ROS may be shut down already
+                    node.destroy_node()
             self._nodes.clear()
+
+
+def _take_lock(lock: IO[str]) -> bool:
+    """The place's lock, waiting up to a second: a command may be probing it
+    (`client.starting`) at the very moment this daemon starts."""
+    deadline = time.monotonic() + 1.0
+    while True:
+        try:
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            return True
+        except BlockingIOError:
+            if time.monotonic() > deadline:
+                return False
+            time.sleep(0.02)
+
+
+def _restart_log() -> None:
+    """Empty the log the command opened for this daemon (appending: racing commands do not
+    truncate a running daemon's log), now that this daemon is the one serving."""
+    if sys.stdout.isatty():
+        return
+    with contextlib.suppress(OSError, ValueError):
+        sys.stdout.flush()
+        os.ftruncate(sys.stdout.fileno(), 0)
 
 
 def _same_user(connection: socket.socket) -> bool:
@@ -252,9 +308,14 @@ def _same_user(connection: socket.socket) -> bool:
     return uid == os.getuid()
 
 
-def serve(place: DaemonPlace, idle_timeout: float, warm_namespace: str | None) -> int:
+def serve(
+    place: DaemonPlace,
+    idle_timeout: float,
+    warm_namespace: str | None,
+    expected_key: str | None = None,
+) -> int:
     try:
-        return DaemonServer(place, idle_timeout, warm_namespace).run()
+        return DaemonServer(place, idle_timeout, warm_namespace, expected_key).run()
     except Exception:
         log(f"failed:\n{traceback.format_exc()}")
         sys.stdout.flush()

@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import math
 import socket
+import time
 from typing import Any
 
 from contextros.cli.ros_arguments import namespace_problem
@@ -42,23 +43,31 @@ def send(connection: socket.socket, message: dict[str, Any]) -> None:
     connection.sendall(json.dumps(message, separators=(",", ":")).encode() + b"\n")
 
 
-def receive(connection: socket.socket, limit: int | None = None) -> dict[str, Any]:
+def receive(
+    connection: socket.socket, limit: int | None = None, within: float | None = None
+) -> dict[str, Any]:
     """Read one message; WireError if the peer closes first, sends more than `limit`
-    bytes or anything but a JSON object."""
+    bytes, takes longer than `within` seconds in all, or sends anything but a JSON object."""
+    deadline = None if within is None else time.monotonic() + within
     chunks: list[bytes] = []
     size = 0
     while True:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise WireError(f"no whole message within {within:g} s")
+            connection.settimeout(left)
         chunk = connection.recv(65536)
         if not chunk:
             raise WireError("the connection closed before a whole message")
         newline = chunk.find(b"\n")
+        size += len(chunk) if newline < 0 else newline
+        if limit is not None and size > limit:
+            raise WireError(f"a message over {limit} bytes")
         if newline >= 0:
             chunks.append(chunk[:newline])
             break
         chunks.append(chunk)
-        size += len(chunk)
-        if limit is not None and size > limit:
-            raise WireError(f"a message over {limit} bytes")
     try:
         message = json.loads(b"".join(chunks))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
@@ -98,7 +107,9 @@ def request_problem(request: dict[str, Any]) -> str | None:
         return f"command must be one of {', '.join(COMMANDS)}"
     if command in ("ping", "stop"):
         return None
-    namespace = request.get("namespace")
+    if "namespace" not in request:
+        return "namespace is missing (null for the command line's default)"
+    namespace = request["namespace"]
     if namespace is not None and (
         not isinstance(namespace, str) or len(namespace) > MAX_NAME or namespace_problem(namespace)
     ):
