@@ -127,7 +127,11 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
                 ),
                 PLAIN: (["plain", "LAYER"], env, "benchmarks.cli_command"),
                 VERSION: (["--version"], env, "contextros"),
-                BEFORE: (["activate", "LAYER", "--sync", "--timeout", "5"], before_env, "contextros"),
+                BEFORE: (
+                    ["activate", "LAYER", "--sync", "--timeout", "5"],
+                    before_env,
+                    "contextros",
+                ),
             }
             for _ in range(rounds):
                 for case in cases:

@@ -42,12 +42,19 @@ def test_a_daemon_serves_one_ros_environment() -> None:
         assert environment_key(BASE | changed) != key, changed
 
 
-def test_the_runtime_directory_is_chosen_in_order() -> None:
-    assert runtime_directory({"CONTEXTROS_RUNTIME_DIR": "/r", "XDG_RUNTIME_DIR": "/x"}) == Path(
-        "/r"
-    )
-    assert runtime_directory({"XDG_RUNTIME_DIR": "/x"}) == Path("/x/contextros")
-    assert runtime_directory({}) == Path(f"/tmp/contextros-{os.getuid()}")
+def test_the_runtime_directory_is_chosen_in_order(tmp_path: Path) -> None:
+    chosen = {"CONTEXTROS_RUNTIME_DIR": "/r", "XDG_RUNTIME_DIR": str(tmp_path)}
+    assert runtime_directory(chosen) == Path("/r")
+    assert runtime_directory({"XDG_RUNTIME_DIR": str(tmp_path)}) == tmp_path / "contextros"
+    fallback = Path(f"/tmp/contextros-{os.getuid()}")
+    assert runtime_directory({}) == fallback
+    # Not this user's (kept by `sudo -E`), or missing: not used.
+    assert runtime_directory({"XDG_RUNTIME_DIR": str(tmp_path / "missing")}) == fallback
+    if os.getuid() == 0:  # only root can hand a directory to another user
+        other = tmp_path / "other"
+        other.mkdir()
+        os.chown(other, 65534, 65534)
+        assert runtime_directory({"XDG_RUNTIME_DIR": str(other)}) == fallback
 
 
 def test_the_directory_must_be_private(tmp_path: Path) -> None:

@@ -342,14 +342,16 @@ def consume(iterator: Iterable[Any]) -> None:
 
 
 def _timer_info_argument(timer: Any) -> str | None:
-    """The parameter of `timer`'s callback annotated `TimerInfo`, if any (rclpy's rule)."""
+    """The parameter of `timer`'s callback annotated `TimerInfo`, if any (rclpy's rule; the
+    annotation may also be the name, as under `from __future__ import annotations`)."""
     if timer.callback is None:
         return None
     try:
         parameters = inspect.signature(timer.callback).parameters.values()
     except (TypeError, ValueError):
         return None
-    return next((p.name for p in parameters if p.annotation == TimerInfo), None)
+    names = (TimerInfo, "TimerInfo", "rclpy.timer.TimerInfo")
+    return next((p.name for p in parameters if p.annotation in names), None)
 
 
 def _event_handle(waitable: Any) -> Any:

@@ -22,8 +22,8 @@ DISABLE_VARIABLE = "CONTEXTROS_NO_DAEMON"
 START_WAIT = 15.0
 STOP_WAIT = 20.0
 CONNECT_TIMEOUT = 2.0
-# A daemon is started at most this often by commands (one that fails at start-up is not
-# started again by every command).
+# Commands start a daemon at most this often (one that fails at start-up is not started
+# again by every command).
 SPAWN_PAUSE = 10.0
 
 
@@ -108,18 +108,23 @@ def spawn(
 
 
 def _spawned_alive(place: DaemonPlace) -> bool:
-    """Whether the daemon last started here is still alive (it may not hold the lock yet)."""
+    """Whether the daemon last started here is still alive (it may not hold the lock yet;
+    just after the fork its command line is still its parent's)."""
     try:
         pid = int(place.pid_file.read_text())
-        command = Path(f"/proc/{pid}/cmdline").read_bytes()
+        os.kill(pid, 0)
+        if _started_lately(place):
+            return True
+        command = Path(f"/proc/{pid}/cmdline").read_bytes()  # not a reused pid
     except (OSError, ValueError):
         return False
     return b"daemon\0start" in command and place.key.encode() in command
 
 
 def _started_lately(place: DaemonPlace) -> bool:
+    """Whether a command started a daemon here less than SPAWN_PAUSE ago."""
     try:
-        return time.time() - place.log.stat().st_mtime < SPAWN_PAUSE
+        return time.time() - place.pid_file.stat().st_mtime < SPAWN_PAUSE
     except OSError:
         return False
 
@@ -140,9 +145,9 @@ def answer_for(request: dict[str, Any], timeout: float) -> dict[str, Any] | None
     try:
         answer = ask(place, request, timeout)
     except DaemonUnreachable as error:
-        if error.start_one and find_spec("rclpy") is not None:
-            if not starting(place) and not _started_lately(place):
-                spawn(place, request.get("namespace"))
+        startable = error.start_one and find_spec("rclpy") is not None
+        if startable and not starting(place) and not _started_lately(place):
+            spawn(place, request.get("namespace"))
         return None
     except DaemonLost as error:
         lost = f"the daemon took the command and gave no answer ({error}; its log: {place.log})"
@@ -178,10 +183,14 @@ def start(
 
 
 def _wait_for_pong(place: DaemonPlace, seconds: float) -> dict[str, Any] | None:
+    """The daemon's pong once it listens; None after `seconds`, or once no daemon is
+    starting any more (one that gave up: another environment's, or ROS missing)."""
     deadline = time.monotonic() + seconds
     while time.monotonic() < deadline:
         if pong := ping(place):
             return pong
+        if not starting(place) and not _spawned_alive(place):
+            return None
         time.sleep(0.05)
     return None
 

@@ -8,6 +8,7 @@ log sit in a directory only its user can enter.
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import os
 import stat
@@ -88,15 +89,11 @@ def environment_key(environ: dict[str, str] | os._Environ[str] = os.environ) -> 
     )
     # The network the participant would join: a command in another network namespace (`ip
     # netns exec`, a container sharing /tmp) reaches a daemon of its own.
-    try:
+    with contextlib.suppress(OSError):
         parts.append(f"netns={os.readlink('/proc/self/ns/net')}")
-    except OSError:
-        pass
-    try:
+    with contextlib.suppress(OSError):  # none here is the common case
         profile = Path(_CWD_PROFILE).resolve()
         parts.append(f"{profile}:{profile.stat().st_mtime_ns}")
-    except OSError:
-        pass  # none here (the common case)
     return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
 
 

@@ -263,7 +263,8 @@ class DaemonServer:
         except LayerError:
             pass  # no manager yet: the first command waits for it as usual
         except Exception:
-            log(f"warming up failed:\n{traceback.format_exc()}")
+            if not self._stop.is_set():  # (a stop shuts ROS down under it)
+                log(f"warming up failed:\n{traceback.format_exc()}")
 
     def _destroy_nodes(self) -> None:
         with self._lock:

@@ -57,7 +57,10 @@ def receive(
             if left <= 0:
                 raise WireError(f"no whole message within {within:g} s")
             connection.settimeout(left)
-        chunk = connection.recv(65536)
+        try:
+            chunk = connection.recv(65536)
+        except TimeoutError as error:
+            raise WireError(f"no whole message within {within or 0:g} s") from error
         if not chunk:
             raise WireError("the connection closed before a whole message")
         newline = chunk.find(b"\n")
