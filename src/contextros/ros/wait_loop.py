@@ -220,7 +220,10 @@ class WaitLoop:
             return
         info_argument = self._timer_info_arguments.get(timer)
         try:
-            info = timer.handle.call_timer_with_info()
+            if info_argument is None:
+                timer.handle.call_timer()
+            else:
+                info = timer.handle.call_timer_with_info()
         except Exception:  # a timer cancelled meanwhile (rclpy's TimerCancelledError)
             return
         if not timer.callback:
