@@ -201,22 +201,25 @@ def run(
             for system in systems.values():
                 system.close()
         for label in systems:
-            ordered = sorted(samples[label])
-            per_activation = statistics.median(cpu[label])
-            rows.append(
-                {
-                    "code": label,
-                    "participants": count,
-                    "median_ms": statistics.median(ordered) * 1e3 if ordered else math.nan,
-                    "p90_ms": ordered[int(0.9 * (len(ordered) - 1))] * 1e3 if ordered else math.nan,
-                    "lost": rounds - len(ordered),
-                    "cpu_ms": per_activation * 1e3,
-                    "cpu_per_participant_ms": per_activation * 1e3 / count,
-                    "idle_cpu": idle[label],
-                    "load": os.getloadavg()[0],
-                }
-            )
+            row = cost_row(samples[label], cpu[label], count, rounds)
+            rows.append({"code": label, **row, "idle_cpu": idle[label]})
     return rows
+
+
+def cost_row(elapsed: list[float], cpu: list[float], count: int, rounds: int) -> dict[str, Any]:
+    """One row of a cost table: the activations' median and p90, the samples lost, and the
+    median CPU per activation (and per participant) of the processes measured."""
+    ordered = sorted(elapsed)
+    per_activation = statistics.median(cpu)
+    return {
+        "participants": count,
+        "median_ms": statistics.median(ordered) * 1e3 if ordered else math.nan,
+        "p90_ms": ordered[int(0.9 * (len(ordered) - 1))] * 1e3 if ordered else math.nan,
+        "lost": rounds - len(ordered),
+        "cpu_ms": per_activation * 1e3,
+        "cpu_per_participant_ms": per_activation * 1e3 / count,
+        "load": os.getloadavg()[0],
+    }
 
 
 def markdown(rows: list[dict[str, Any]]) -> str:

@@ -16,13 +16,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import statistics
 import sys
 import time
 from typing import Any
 
-from benchmarks.manager_cost import BLOCK, _System
+from benchmarks.manager_cost import BLOCK, _System, cost_row
 
 NODE_COUNTS = (16, 64)
 SETTLE = 1.0  # after the other system is paused and this one continued
@@ -57,20 +55,7 @@ def run(node_counts: tuple[int, ...] = NODE_COUNTS, rounds: int = ROUNDS) -> lis
             for system in systems.values():
                 system.close()
         for label in systems:
-            ordered = sorted(samples[label])
-            per_activation = statistics.median(cpu[label])
-            rows.append(
-                {
-                    "spin": label,
-                    "participants": count,
-                    "median_ms": statistics.median(ordered) * 1e3 if ordered else math.nan,
-                    "p90_ms": ordered[int(0.9 * (len(ordered) - 1))] * 1e3 if ordered else math.nan,
-                    "lost": rounds - len(ordered),
-                    "cpu_ms": per_activation * 1e3,
-                    "cpu_per_participant_ms": per_activation * 1e3 / count,
-                    "load": os.getloadavg()[0],
-                }
-            )
+            rows.append({"spin": label, **cost_row(samples[label], cpu[label], count, rounds)})
     return rows
 
 

@@ -7,9 +7,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from contextros.cli.ros_arguments import namespace_problem
+
+if TYPE_CHECKING:
+    from contextros.cli.daemon.place import DaemonPlace
 
 USAGE = 2
 
@@ -55,7 +58,6 @@ def register(commands: Any) -> None:
 
 def run_start(args: argparse.Namespace) -> int:
     from contextros.cli.daemon import client
-    from contextros.cli.daemon.place import PlaceError, daemon_place
 
     if args.warm_namespace is not None and (problem := namespace_problem(args.warm_namespace)):
         print(f"contextros daemon: {problem}", file=sys.stderr)
@@ -63,10 +65,7 @@ def run_start(args: argparse.Namespace) -> int:
     if args.idle_timeout < 0:
         print("contextros daemon: --idle-timeout must be 0 or more", file=sys.stderr)
         return USAGE
-    try:
-        place = daemon_place()
-    except PlaceError as error:
-        print(f"contextros daemon: {error}", file=sys.stderr)
+    if (place := _place()) is None:
         return 1
     if args.foreground:
         from contextros.cli.daemon.server import serve
@@ -85,12 +84,8 @@ def run_start(args: argparse.Namespace) -> int:
 
 def run_stop(args: argparse.Namespace) -> int:
     from contextros.cli.daemon import client
-    from contextros.cli.daemon.place import PlaceError, daemon_place
 
-    try:
-        place = daemon_place()
-    except PlaceError as error:
-        print(f"contextros daemon: {error}", file=sys.stderr)
+    if (place := _place()) is None:
         return 1
     from contextros.cli.daemon.place import places
 
@@ -113,12 +108,8 @@ def run_stop(args: argparse.Namespace) -> int:
 
 def run_status(args: argparse.Namespace) -> int:
     from contextros.cli.daemon import client
-    from contextros.cli.daemon.place import PlaceError, daemon_place
 
-    try:
-        place = daemon_place()
-    except PlaceError as error:
-        print(f"contextros daemon: {error}", file=sys.stderr)
+    if (place := _place()) is None:
         return 1
     domain = os.environ.get("ROS_DOMAIN_ID", "0")
     pong = client.ping(place)
@@ -129,3 +120,14 @@ def run_status(args: argparse.Namespace) -> int:
     if not client.wanted():
         print(f"commands do not use it: {client.DISABLE_VARIABLE} is set")
     return 0
+
+
+def _place() -> DaemonPlace | None:
+    """The daemon's place for this environment, or None (said on stderr)."""
+    from contextros.cli.daemon.place import PlaceError, daemon_place
+
+    try:
+        return daemon_place()
+    except PlaceError as error:
+        print(f"contextros daemon: {error}", file=sys.stderr)
+        return None
