@@ -112,11 +112,13 @@ def _spawned_alive(place: DaemonPlace) -> bool:
     just after the fork its command line is still its parent's)."""
     try:
         pid = int(place.pid_file.read_text())
-        os.kill(pid, 0)
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        if state in ("Z", "X"):  # exited (a zombie until the command that started it exits)
+            return False
         if _started_lately(place):
             return True
         command = Path(f"/proc/{pid}/cmdline").read_bytes()  # not a reused pid
-    except (OSError, ValueError):
+    except (OSError, ValueError, IndexError):
         return False
     return b"daemon\0start" in command and place.key.encode() in command
 
