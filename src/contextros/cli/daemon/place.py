@@ -55,22 +55,25 @@ class DaemonPlace:
         self.directory = directory
         self.key = key
 
+    def _file(self, suffix: str) -> Path:
+        return self.directory / f"daemon-{self.key}.{suffix}"
+
     @property
     def socket(self) -> Path:
-        return self.directory / f"daemon-{self.key}.sock"
+        return self._file("sock")
 
     @property
     def lock(self) -> Path:
-        return self.directory / f"daemon-{self.key}.lock"
+        return self._file("lock")
 
     @property
     def log(self) -> Path:
-        return self.directory / f"daemon-{self.key}.log"
+        return self._file("log")
 
     @property
     def pid_file(self) -> Path:
         """The pid of the daemon a command started last (until it holds the lock)."""
-        return self.directory / f"daemon-{self.key}.pid"
+        return self._file("pid")
 
 
 def environment_key(environ: dict[str, str] | os._Environ[str] = os.environ) -> str:
