@@ -3,8 +3,11 @@ context node and a C++ context node switch layers together, synchronously."""
 
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import subprocess
+import tempfile
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -72,3 +75,42 @@ def switch_together(
     assert "acknowledged by 2 node(s)" in answer, answer
     assert line_with(python, "[London]").endswith("good morning")
     assert line_with(cpp, "[London]").endswith("good morning")
+
+    check_the_daemon(shell, cwd, {"/greeter_py", "/greeter_cpp"})
+
+
+def check_the_daemon(shell: Mapping[str, str], cwd: Path, nodes: set[str]) -> None:
+    """The CLI's daemon, from the installation (docs/cli.md section 10): the first command
+    starts it, and the next one is answered by it, importing no rclpy."""
+    runtime = tempfile.mkdtemp(prefix="crd-install-")  # short: a socket's path is limited
+    env = {**shell, "CONTEXTROS_RUNTIME_DIR": runtime}
+    env.pop("CONTEXTROS_NO_DAEMON", None)
+
+    def contextros(*argv: str, **extra: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(
+            ["contextros", *argv],
+            env=env | extra,
+            cwd=cwd,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+
+    try:
+        first = contextros("status", "--json")
+        assert first.returncode == 0, first.stderr
+        deadline = time.monotonic() + 20
+        while contextros("daemon", "status").returncode != 0:
+            assert time.monotonic() < deadline, f"no daemon started; {first.stderr}"
+            time.sleep(0.2)
+        served = contextros("status", "--json", PYTHONPROFILEIMPORTTIME="1")
+        assert served.returncode == 0, served.stderr
+        imported = {line.rpartition("|")[2].strip() for line in served.stderr.splitlines()}
+        assert "rclpy" not in imported, "the command asked the manager itself"
+        shown = {p["node"] for p in json.loads(served.stdout)["participants"]}
+        assert nodes <= shown, shown
+        stopped = contextros("daemon", "stop")
+        assert stopped.returncode == 0 and "stopped" in stopped.stdout, stopped.stdout
+    finally:
+        contextros("daemon", "stop", "--all")
+        shutil.rmtree(runtime, ignore_errors=True)
