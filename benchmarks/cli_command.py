@@ -85,7 +85,7 @@ def _check_served_by_daemon(env: dict[str, str]) -> None:
         timeout=60,
     )
     imported = {line.rpartition("|")[2].strip() for line in done.stderr.splitlines()}
-    if done.returncode != 0 or "rclpy" in imported:
+    if done.returncode != 0 or any(name.split(".")[0] == "rclpy" for name in imported):
         raise RuntimeError(f"the daemon did not answer a command: {done.stderr[-500:]}")
 
 

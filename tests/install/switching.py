@@ -106,7 +106,7 @@ def check_the_daemon(shell: Mapping[str, str], cwd: Path, nodes: set[str]) -> No
         served = contextros("status", "--json", PYTHONPROFILEIMPORTTIME="1")
         assert served.returncode == 0, served.stderr
         imported = {line.rpartition("|")[2].strip() for line in served.stderr.splitlines()}
-        assert "rclpy" not in imported, "the command asked the manager itself"
+        assert not [m for m in imported if m.split(".")[0] == "rclpy"], "it asked itself"
         shown = {p["node"] for p in json.loads(served.stdout)["participants"]}
         assert nodes <= shown, shown
         stopped = contextros("daemon", "stop")
