@@ -57,7 +57,15 @@ def test_a_cpp_node_that_cannot_apply_a_state_fails_the_activation_naming_it(
     stubborn = processes.cpp_participant("stubborn_cxx", "--refuse", "Night")
     ready(stubborn)
     start_system(processes, client, ["willing"])
-    wait_registry(client, lambda r: len(r.participants) == 2, what="both participants")
+    # Both on the manager's current state: a node whose first state is the refused one
+    # has applied nothing to stay on.
+    wait_registry(
+        client,
+        lambda r: len(r.participants) == 2
+        and all(p.applied_epoch == r.epoch for p in r.participants),
+        what="both participants on the current state",
+    )
+    stubborn.wait_applied(1)
     started = time.monotonic()
     refused = client.request(["Night"], synchronous=True, timeout=10)
     assert time.monotonic() - started < 2.0, "a failure is reported, not waited out"

@@ -12,10 +12,12 @@ import os
 import sys
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from contextros.cli.answered_in_child import INTERRUPTED, answered_in_child
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
 
@@ -27,6 +29,8 @@ if TYPE_CHECKING:
 FAILED = 1
 USAGE = 2
 NO_MANAGER = 3
+# A command's answer that is not a result: its exit status.
+_FAILURES = {"usage": USAGE, "no_manager": NO_MANAGER, "interrupted": INTERRUPTED}
 # The commands the daemon answers (contextros.cli.daemon) when it runs.
 DAEMON_SERVED = ("activate", "deactivate", "switch", "status")
 
@@ -274,20 +278,19 @@ def run_manager(args: argparse.Namespace) -> int:
 # -- clients --------------------------------------------------------------------------------
 
 
-@contextmanager
-def _client(args: argparse.Namespace, purpose: str) -> Iterator[LayerClient]:
+def _open_client(
+    args: argparse.Namespace, purpose: str, requester: str, teardown: ExitStack
+) -> LayerClient:
     """A LayerClient on a short-lived node of this command's own (in the namespace the
-    command line gives), torn down on the way out."""
+    command line gives); the node and rclpy are torn down when `teardown` closes."""
     from contextros.ros import LayerClient
     from contextros.ros.client import quiet_node
 
     use_packaged_profile("client_discovery.xml")
-    with ros_session(args):
-        node = quiet_node(f"contextros_{purpose}_{os.getpid()}")
-        try:
-            yield LayerClient(node)
-        finally:
-            node.destroy_node()
+    teardown.enter_context(ros_session(args))
+    node = quiet_node(f"contextros_{purpose}_{os.getpid()}")
+    teardown.callback(node.destroy_node)
+    return LayerClient(node, requester=requester)
 
 
 def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
@@ -300,6 +303,7 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     if args.expect_count < 0:
         print("contextros: --expect-count must be 0 or more", file=sys.stderr)
         return 2
+    requester = _requester()  # this command's process, wherever the command is sent from
     answer = _through_daemon(
         args,
         {
@@ -312,17 +316,26 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
             "expect": args.expect,
             "expect_count": args.expect_count,
             "reason": args.reason,
-            "requester": _requester(),
+            "requester": requester,
         },
     )
-    if answer is None:
-        answer = _send_directly(args, on, off)
+    if answer is not None:
+        return _report(args, on, answer)
+    with answered_in_child(
+        partial(_send_directly, args, on, off, requester),
+        "whether it was carried out is unknown; see `contextros status`",
+    ) as answer:
+        return _report(args, on, answer)
+
+
+def _report(args: argparse.Namespace, on: list[str], answer: dict[str, Any]) -> int:
+    """Print an activation's answer (the daemon's or this command's own); its exit status."""
     if answer["outcome"] == "no_manager":
         print(f"contextros: {answer['message']}", file=sys.stderr)
         return NO_MANAGER
-    if answer["outcome"] != "result":  # "failed", or the command line's own "usage"
+    if answer["outcome"] != "result":
         print(f"contextros: {answer['message']}", file=sys.stderr)
-        return USAGE if answer["outcome"] == "usage" else FAILED
+        return _FAILURES.get(answer["outcome"], FAILED)
     return _print_result(args, on, answer["result"])
 
 
@@ -348,31 +361,33 @@ def _through_daemon(args: argparse.Namespace, request: dict[str, Any]) -> dict[s
     )
 
 
-def _send_directly(args: argparse.Namespace, on: list[str], off: list[str]) -> dict[str, Any]:
+def _send_directly(
+    args: argparse.Namespace, on: list[str], off: list[str], requester: str, teardown: ExitStack
+) -> dict[str, Any]:
     """The same answer as the daemon's, from a client node of this process."""
     if problem := _ros_problem(args):
         return problem
     try:
-        with _client(args, "cli") as client:
-            try:
-                client.wait_for_manager(args.wait_manager)
-            except LayerError as error:
-                return {"outcome": "no_manager", "message": str(error)}
-            try:
-                result = client.request(
-                    on,
-                    off,
-                    synchronous=args.sync,
-                    timeout=args.timeout,
-                    reason=args.reason,
-                    expect_nodes=args.expect,
-                    expect_count=args.expect_count,
-                    atomic=args.atomic,
-                )
-            except LayerError as error:
-                return {"outcome": "failed", "message": str(error)}
+        client = _open_client(args, "cli", requester, teardown)
     except RosArgumentsError as error:
         return {"outcome": "usage", "message": str(error)}
+    try:
+        client.wait_for_manager(args.wait_manager)
+    except LayerError as error:
+        return {"outcome": "no_manager", "message": str(error)}
+    try:
+        result = client.request(
+            on,
+            off,
+            synchronous=args.sync,
+            timeout=args.timeout,
+            reason=args.reason,
+            expect_nodes=args.expect,
+            expect_count=args.expect_count,
+            atomic=args.atomic,
+        )
+    except LayerError as error:
+        return {"outcome": "failed", "message": str(error)}
     from contextros.cli.daemon.wire import result_as_dict
 
     return {"outcome": "result", "result": result_as_dict(result)}
@@ -430,11 +445,16 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
 
 def run_status(args: argparse.Namespace) -> int:
     answer = _through_daemon(args, {"command": "status"})
-    if answer is None:
-        answer = _status_directly(args)
+    if answer is not None:
+        return _show_status(args, answer)
+    with answered_in_child(partial(_status_directly, args), "run the command again") as answer:
+        return _show_status(args, answer)
+
+
+def _show_status(args: argparse.Namespace, answer: dict[str, Any]) -> int:
     if answer["outcome"] != "registry":
         print(f"contextros: {answer['message']}", file=sys.stderr)
-        return USAGE if answer["outcome"] == "usage" else NO_MANAGER
+        return _FAILURES.get(answer["outcome"], FAILED)
     if args.json:
         print(json.dumps(answer["registry"], indent=2))
     else:
@@ -442,21 +462,21 @@ def run_status(args: argparse.Namespace) -> int:
     return 0
 
 
-def _status_directly(args: argparse.Namespace) -> dict[str, Any]:
+def _status_directly(args: argparse.Namespace, teardown: ExitStack) -> dict[str, Any]:
     if problem := _ros_problem(args):
         return problem
     from contextros.ros.messages import registry_to_dict
 
     try:
-        with _client(args, "status") as client:
-            try:
-                client.wait_for_manager(args.wait_manager)
-                registry = client.query()
-            except LayerError as error:
-                return {"outcome": "no_manager", "message": str(error)}
-            return {"outcome": "registry", "registry": registry_to_dict(registry)}
+        client = _open_client(args, "status", _requester(), teardown)
     except RosArgumentsError as error:
         return {"outcome": "usage", "message": str(error)}
+    try:
+        client.wait_for_manager(args.wait_manager)
+        registry = client.query()
+    except LayerError as error:
+        return {"outcome": "no_manager", "message": str(error)}
+    return {"outcome": "registry", "registry": registry_to_dict(registry)}
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:
