@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -116,6 +117,39 @@ def test_no_manager_exits_with_status_3() -> None:
     lonely = contextros("activate", "Night", "--wait-manager", "0.5", domain=empty_domain)
     assert lonely.returncode == 3
     assert "no Layer manager" in lonely.stderr
+
+
+def test_ctrl_c_while_waiting_for_the_manager_exits_130_quietly() -> None:
+    """The terminal's SIGINT reaches the command and its ROS client (a child: see
+    contextros.cli.answered_in_child); the command says what that means, no traceback."""
+    empty_domain = str(reserve_domain_id(int(os.environ["ROS_DOMAIN_ID"]) + 1))
+    command = subprocess.Popen(
+        [sys.executable, "-m", "contextros", "activate", "Night", "--wait-manager", "30"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=dict(os.environ, ROS_DOMAIN_ID=empty_domain),
+        start_new_session=True,  # its own process group, as a terminal's foreground job
+    )
+    try:
+        deadline = time.monotonic() + 20
+        while not _children(command.pid):  # the client's child exists: it is waiting
+            assert time.monotonic() < deadline, "no ROS client process was started"
+            time.sleep(0.05)
+        time.sleep(0.5)  # inside rclpy by now
+        os.killpg(command.pid, signal.SIGINT)
+        _, stderr = command.communicate(timeout=20)
+    finally:
+        if command.poll() is None:
+            os.killpg(command.pid, signal.SIGKILL)
+    assert command.returncode == 130, stderr
+    assert "interrupted; whether it was carried out is unknown" in stderr
+    assert "Traceback" not in stderr, stderr
+
+
+def _children(pid: int) -> list[str]:
+    path = Path(f"/proc/{pid}/task/{pid}/children")
+    return path.read_text().split() if path.exists() else []
 
 
 def test_manager_refuses_a_damaged_state_file(tmp_path: Path) -> None:

@@ -241,3 +241,28 @@ def test_an_idle_daemon_stops_by_itself(system: RunningSystem) -> None:
     finally:
         contextros("daemon", "stop", "--all", runtime=runtime)
         shutil.rmtree(runtime, ignore_errors=True)
+
+
+def test_a_daemon_whose_teardown_hangs_still_ends_and_logs_where() -> None:
+    """Fast DDS can deadlock deleting a participant; the daemon's way out is bounded."""
+    runtime = Path(tempfile.mkdtemp(prefix="crd-hang-"))
+    program = (
+        "import sys, time\n"
+        "from contextros.cli.daemon import server\n"
+        "from contextros.cli.daemon.place import daemon_place\n"
+        "server.TEARDOWN_LIMIT = 1.0\n"
+        "def hang(self):\n"
+        "    time.sleep(600)\n"
+        "server.DaemonServer._destroy_nodes = hang\n"
+        "sys.exit(server.serve(daemon_place(), 0.5, None))\n"
+    )
+    try:
+        env = dict(os.environ, CONTEXTROS_RUNTIME_DIR=str(runtime))
+        done = subprocess.run(
+            [sys.executable, "-c", program], capture_output=True, text=True, env=env, timeout=60
+        )
+        assert done.returncode == 1, done.stdout + done.stderr
+        assert "stopping" in done.stdout
+        assert "Timeout (0:00:01)!" in done.stderr and "in hang" in done.stderr, done.stderr
+    finally:
+        shutil.rmtree(runtime, ignore_errors=True)

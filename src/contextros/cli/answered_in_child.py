@@ -66,11 +66,14 @@ def answered_in_child(
         finally:
             _reap(child, limit)
         return
-    ended = _describe(_reap(child, None))
+    status = _reap(child, None)
+    if os.WIFEXITED(status) and os.WEXITSTATUS(status) == INTERRUPTED:
+        yield {"outcome": "interrupted", "message": f"interrupted; {unanswered}"}
+        return
     yield {
         "outcome": "failed",
-        "message": f"the command's ROS client (pid {child}) {ended} without an answer; "
-        f"{unanswered}",
+        "message": f"the command's ROS client (pid {child}) {_describe(status)} without an "
+        f"answer; {unanswered}",
     }
 
 
@@ -89,15 +92,21 @@ def _answer_and_exit(work: Work, writable: int) -> None:  # pragma: no cover - c
             while view:
                 view = view[os.write(writable, view) :]
             os.close(writable)
-    except KeyboardInterrupt:
-        status = INTERRUPTED
-    except BaseException:
-        traceback.print_exc()
-        status = 1
+    except BaseException as error:
+        status = INTERRUPTED if _interrupted(error) else 1
+        if status != INTERRUPTED:
+            traceback.print_exc()
     finally:
         sys.stdout.flush()
         sys.stderr.flush()
         os._exit(status)
+
+
+def _interrupted(error: BaseException) -> bool:  # pragma: no cover - child only
+    """Ctrl-C: Python's KeyboardInterrupt, or rclpy's own handler, which shuts the context
+    down under the node (its calls then raise RCLError)."""
+    rclpy = sys.modules.get("rclpy")
+    return isinstance(error, KeyboardInterrupt) or (rclpy is not None and not rclpy.ok())
 
 
 def _reap(child: int, limit: float | None) -> int:

@@ -330,9 +330,6 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
 
 def _report(args: argparse.Namespace, on: list[str], answer: dict[str, Any]) -> int:
     """Print an activation's answer (the daemon's or this command's own); its exit status."""
-    if answer["outcome"] == "no_manager":
-        print(f"contextros: {answer['message']}", file=sys.stderr)
-        return NO_MANAGER
     if answer["outcome"] != "result":
         print(f"contextros: {answer['message']}", file=sys.stderr)
         return _FAILURES.get(answer["outcome"], FAILED)
@@ -364,7 +361,8 @@ def _through_daemon(args: argparse.Namespace, request: dict[str, Any]) -> dict[s
 def _send_directly(
     args: argparse.Namespace, on: list[str], off: list[str], requester: str, teardown: ExitStack
 ) -> dict[str, Any]:
-    """The same answer as the daemon's, from a client node of this process."""
+    """The same answer as the daemon's, from a client node of the calling process (the
+    command's child: see answered_in_child)."""
     if problem := _ros_problem(args):
         return problem
     try:

@@ -9,6 +9,7 @@ lock for its whole life, so a second one started by a racing command exits at on
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import fcntl
 import itertools
 import os
@@ -44,6 +45,10 @@ MAX_NAMESPACES = 8  # client nodes per worker
 READ_TIMEOUT = 5.0  # a connection that sends no whole request in time is dropped
 DEFAULT_IDLE_TIMEOUT = 900.0
 WARM_UP_WAIT = 5.0
+# Seconds the way out may take (commands in flight end, nodes and rclpy are torn down):
+# Fast DDS can deadlock deleting a participant while holding the GIL, so a C thread
+# (faulthandler's) ends the process then, with the stack it hung in in the log.
+TEARDOWN_LIMIT = 10.0
 
 
 def log(text: str) -> None:
@@ -116,6 +121,7 @@ class DaemonServer:
             log(f"serving {self.place.socket} (ROS_DOMAIN_ID={domain})")
             self._serve(listener, workers)
             log("stopping")
+            faulthandler.dump_traceback_later(TEARDOWN_LIMIT, exit=True)
         return 0
 
     def _listen(self) -> socket.socket:
