@@ -61,8 +61,9 @@ def test_a_cpp_node_that_cannot_apply_a_state_fails_the_activation_naming_it(
     # has applied nothing to stay on.
     wait_registry(
         client,
-        lambda r: len(r.participants) == 2
-        and all(p.applied_epoch == r.epoch for p in r.participants),
+        lambda r: (
+            len(r.participants) == 2 and all(p.applied_epoch == r.epoch for p in r.participants)
+        ),
         what="both participants on the current state",
     )
     stubborn.wait_applied(1)

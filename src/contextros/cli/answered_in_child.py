@@ -82,7 +82,7 @@ def _can_fork() -> bool:
 
 
 def _answer_and_exit(work: Work, writable: int) -> None:  # pragma: no cover - child only
-    status = 0
+    status, answered = 0, False
     try:
         faulthandler.enable()  # a crash before the answer shows where it happened
         with ExitStack() as teardown:
@@ -92,9 +92,10 @@ def _answer_and_exit(work: Work, writable: int) -> None:  # pragma: no cover - c
             while view:
                 view = view[os.write(writable, view) :]
             os.close(writable)
+            answered = True
     except BaseException as error:
         status = INTERRUPTED if _interrupted(error) else 1
-        if status != INTERRUPTED:
+        if status != INTERRUPTED and not answered:  # after the answer: teardown's, unseen
             traceback.print_exc()
     finally:
         sys.stdout.flush()
@@ -115,19 +116,18 @@ def _reap(child: int, limit: float | None) -> int:
     while True:
         try:
             done, status = os.waitpid(child, 0 if deadline is None else os.WNOHANG)
-        except ChildProcessError:
-            return 0
-        except KeyboardInterrupt:
-            deadline = time.monotonic()  # a second Ctrl-C: stop waiting
-            continue
-        if done:
-            return status
-        assert deadline is not None
-        if time.monotonic() >= deadline:
+            if done:
+                return status
+            assert deadline is not None
+            if time.monotonic() < deadline:
+                time.sleep(0.005)
+                continue
             os.kill(child, signal.SIGKILL)
             deadline = None
-            continue
-        time.sleep(0.005)
+        except ChildProcessError:
+            return 0
+        except KeyboardInterrupt:  # a second Ctrl-C: stop waiting
+            deadline = time.monotonic()
 
 
 def _describe(status: int) -> str:
