@@ -10,6 +10,7 @@ import json
 import subprocess
 import sys
 import textwrap
+import time
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,7 @@ PROGRAM = textwrap.dedent(
         return {"outcome": "result", "pid": os.getpid()}
 
     print(json.dumps({"parent": os.getpid()}), flush=True)
-    with answered_in_child(work, "the outcome is unknown", limit=0.5) as answer:
+    with answered_in_child(work, "the outcome is unknown", limit=LIMIT) as answer:
         print(json.dumps(answer), flush=True)
     print(json.dumps({"reaped": True}), flush=True)
     """
@@ -33,11 +34,12 @@ PROGRAM = textwrap.dedent(
 
 
 def run(
-    tmp_path: Path, before: str = "pass", in_teardown: str = "None"
+    tmp_path: Path, before: str = "pass", in_teardown: str = "None", limit: float = 10.0
 ) -> tuple[dict[str, Any], str]:
     """What the program printed, by key, and its standard error; "torn_down_by": the pid
     of the process that tore its node down, if one did."""
     program = PROGRAM.replace("BEFORE", before).replace("IN_TEARDOWN", in_teardown)
+    program = program.replace("LIMIT", str(limit))
     torn = tmp_path / "torn_down_by"
     done = subprocess.run(
         [sys.executable, "-c", program, str(torn)], capture_output=True, text=True, timeout=60
@@ -63,7 +65,7 @@ def test_the_answer_comes_from_a_child_that_tears_down_after_answering(tmp_path:
 
 
 def test_a_teardown_that_hangs_is_killed_and_the_answer_stands(tmp_path: Path) -> None:
-    printed, _ = run(tmp_path, in_teardown="time.sleep(600)")
+    printed, _ = run(tmp_path, in_teardown="time.sleep(600)", limit=0.5)
     assert printed["answer"]["outcome"] == "result"
     assert "torn_down_by" not in printed, "the hung teardown never ended"
 
@@ -85,5 +87,64 @@ def test_a_child_that_dies_before_answering_is_reported_with_its_signal(tmp_path
 def test_a_child_that_raises_shows_its_traceback_and_is_reported(tmp_path: Path) -> None:
     printed, stderr = run(tmp_path, before="raise RuntimeError('no luck')")
     assert printed["answer"]["outcome"] == "failed"
-    assert "exited with status 1 without an answer" in printed["answer"]["message"]
+    assert "failed: RuntimeError: no luck (traceback above)" in printed["answer"]["message"]
+    assert "Traceback" in stderr and "RuntimeError: no luck" in stderr
+
+
+def test_an_error_is_reported_as_one_even_when_teardown_shuts_rclpy_down(
+    tmp_path: Path,
+) -> None:
+    """Ctrl-C shows as a context that rclpy's signal handler shut down; a real error is
+    judged before teardown shuts the context down itself."""
+    fake_rclpy = (
+        "import types; context = {'ok': True}; "
+        "sys.modules['rclpy'] = types.SimpleNamespace(ok=lambda: context['ok']); "
+        "teardown.callback(context.update, ok=False); "
+        "raise RuntimeError('a bug')"
+    )
+    printed, stderr = run(tmp_path, before=fake_rclpy)
+    assert printed["answer"]["outcome"] == "failed", printed
+    assert "failed: RuntimeError: a bug" in printed["answer"]["message"]
+    assert "RuntimeError: a bug" in stderr
+
+
+def test_a_child_that_fails_is_not_waited_for_through_its_teardown(tmp_path: Path) -> None:
+    printed, stderr = run(
+        tmp_path,
+        before="teardown.callback(time.sleep, 600); raise RuntimeError('no luck')",
+        limit=0.5,
+    )
+    assert printed["answer"]["outcome"] == "failed", "reported before the teardown ended"
     assert "RuntimeError: no luck" in stderr
+
+
+def test_a_child_dies_with_the_command(tmp_path: Path) -> None:
+    """Killing the command (a supervisor, a timeout) kills its ROS client too."""
+    pid_file = tmp_path / "child"
+    program = PROGRAM.replace(
+        "BEFORE", f"open({str(pid_file)!r}, 'w').write(str(os.getpid())); time.sleep(600)"
+    ).replace("LIMIT", "10.0")
+    command = subprocess.Popen([sys.executable, "-c", program, str(tmp_path / "torn")])
+    try:
+        deadline = time.monotonic() + 30
+        while not pid_file.exists() or not pid_file.read_text():
+            assert time.monotonic() < deadline, "the child did not start"
+            time.sleep(0.05)
+        child = int(pid_file.read_text())
+        assert _alive(child)
+    finally:
+        command.kill()
+        command.wait()
+    deadline = time.monotonic() + 10
+    while _alive(child):
+        assert time.monotonic() < deadline, f"child {child} outlived the command"
+        time.sleep(0.05)
+
+
+def _alive(pid: int) -> bool:
+    """Running, not merely a zombie that nobody reaped yet."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rpartition(")")[2].split()[0]
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+    return state not in ("Z", "X")

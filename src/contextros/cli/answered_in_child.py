@@ -2,11 +2,15 @@
 
 The child makes the ROS node, asks, sends its answer back over a pipe, and only then
 tears the node down. The command prints the answer and exits with its status whatever
-that teardown does: under discovery churn, Fast DDS 3.2 can deadlock deleting a
-participant (`DomainParticipant::set_listener` waits, holding the GIL, on a discovery
-callback that waits for it) or crash there. A child that is not gone
-`TEARDOWN_LIMIT` seconds after answering is killed; Fast DDS's other processes reclaim
-its shared-memory segments.
+that teardown does. Under discovery churn Fast DDS 3.2 can deadlock deleting a
+participant: `DomainParticipant::set_listener` spins until a discovery callback ends,
+and that callback waits for a mutex the deletion holds. rclpy holds the GIL all along,
+so no Python thread or signal handler can end such a process. It can crash there too.
+
+A child that is not gone `TEARDOWN_LIMIT` seconds after answering is killed, and so is
+a child whose command was killed. A killed participant announces no departure: its
+peers drop it when its lease ends. Its shared-memory segments are removed by the
+watchdog of Fast DDS's other processes on the host, or by `fastdds shm clean`.
 
 Without `os.fork`, or in a process that already runs threads or rclpy (a fork would
 copy their state without their threads), the command asks in-process as before.
@@ -14,6 +18,8 @@ copy their state without their threads), the command asks in-process as before.
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import faulthandler
 import json
 import os
@@ -24,10 +30,11 @@ import time
 import traceback
 from collections.abc import Callable, Iterator
 from contextlib import ExitStack, contextmanager
-from typing import Any
+from typing import Any, NoReturn
 
 TEARDOWN_LIMIT = 3.0  # seconds a child may take to tear its node down after answering
 INTERRUPTED = 130  # the shell's status for a command ended by Ctrl-C
+PR_SET_PDEATHSIG = 1  # prctl(2): the signal a process gets when its parent dies
 
 # The work: given the stack its ROS teardown goes on, the command's answer (a JSON-able
 # dict with an "outcome"); the stack is closed once the answer is on its way.
@@ -48,59 +55,91 @@ def answered_in_child(
     readable, writable = os.pipe()
     sys.stdout.flush()
     sys.stderr.flush()
+    parent = os.getpid()
     child = os.fork()
     if child == 0:  # pragma: no cover - runs in the child, which never returns
         os.close(readable)
-        _answer_and_exit(work, writable)
+        _answer_and_exit(work, writable, parent)
     os.close(writable)
+    interrupted = {"outcome": "interrupted", "message": f"interrupted; {unanswered}"}
     try:
         with os.fdopen(readable, "rb") as pipe:
-            data = pipe.read()  # until the child sent its answer, or ended without one
+            data = pipe.read()  # until the child sent its report, or ended without one
     except KeyboardInterrupt:  # the child got the same Ctrl-C
         _reap(child, limit)
-        yield {"outcome": "interrupted", "message": f"interrupted; {unanswered}"}
+        yield interrupted
         return
-    if data:
+    try:
+        report = json.loads(data) if data else {}
+    except ValueError:  # cut short: the child died while writing it
+        report = {}
+    if "answer" in report:
         try:
-            yield json.loads(data)
+            yield report["answer"]
         finally:
+            sys.stdout.flush()  # the answer is out before the child's teardown ends
             _reap(child, limit)
         return
-    status = _reap(child, None)
-    if os.WIFEXITED(status) and os.WEXITSTATUS(status) == INTERRUPTED:
-        yield {"outcome": "interrupted", "message": f"interrupted; {unanswered}"}
-        return
-    yield {
-        "outcome": "failed",
-        "message": f"the command's ROS client (pid {child}) {_describe(status)} without an "
-        f"answer; {unanswered}",
-    }
+    ended = _describe(_reap(child, limit))
+    if report.get("interrupted"):
+        yield interrupted
+    elif "error" in report:
+        yield {
+            "outcome": "failed",
+            "message": f"the command's ROS client (pid {child}) failed: {report['error']} "
+            f"(traceback above); {unanswered}",
+        }
+    else:
+        yield {
+            "outcome": "failed",
+            "message": f"the command's ROS client (pid {child}) {ended} without an answer; "
+            f"{unanswered}",
+        }
 
 
 def _can_fork() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1 and "rclpy" not in sys.modules
 
 
-def _answer_and_exit(work: Work, writable: int) -> None:  # pragma: no cover - child only
-    status, answered = 0, False
+def _answer_and_exit(work: Work, writable: int, parent: int) -> NoReturn:  # pragma: no cover
+    """The child's whole life. Its report goes to the parent, closing the pipe, before its
+    ROS node is torn down: {"answer": ...}, {"interrupted": true} or {"error": "..."}."""
+    status = 1
     try:
-        faulthandler.enable()  # a crash before the answer shows where it happened
+        _die_with(parent)
+        with contextlib.suppress(OSError):
+            os.dup2(2, 1)  # the command's standard output is the parent's alone
+        faulthandler.enable()  # a crash before the report shows where it happened
         with ExitStack() as teardown:
-            answer = json.dumps(work(teardown)).encode()
-            faulthandler.disable()  # one in teardown is the middleware's, after the answer
-            view = memoryview(answer)
+            try:
+                report = json.dumps({"answer": work(teardown)})
+                status = 0
+            except BaseException as error:  # judged before teardown shuts rclpy down
+                if _interrupted(error):
+                    report, status = json.dumps({"interrupted": True}), INTERRUPTED
+                else:
+                    traceback.print_exc()
+                    report = json.dumps({"error": f"{type(error).__name__}: {error}"})
+            faulthandler.disable()  # one in teardown is the middleware's, after the report
+            view = memoryview(report.encode())
             while view:
                 view = view[os.write(writable, view) :]
-            os.close(writable)
-            answered = True
-    except BaseException as error:
-        status = INTERRUPTED if _interrupted(error) else 1
-        if status != INTERRUPTED and not answered:  # after the answer: teardown's, unseen
-            traceback.print_exc()
+            os.close(writable)  # the parent stops waiting, whatever teardown does
+    except BaseException:  # teardown's, once the parent has the report
+        pass
     finally:
-        sys.stdout.flush()
-        sys.stderr.flush()
+        with contextlib.suppress(BaseException):
+            sys.stdout.flush()
+            sys.stderr.flush()
         os._exit(status)
+
+
+def _die_with(parent: int) -> None:  # pragma: no cover - child only
+    """Be killed when the command's process dies (Linux); exit now if it already has."""
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent:
+        os._exit(1)
 
 
 def _interrupted(error: BaseException) -> bool:  # pragma: no cover - child only
@@ -110,8 +149,9 @@ def _interrupted(error: BaseException) -> bool:  # pragma: no cover - child only
     return isinstance(error, KeyboardInterrupt) or (rclpy is not None and not rclpy.ok())
 
 
-def _reap(child: int, limit: float | None) -> int:
-    """The child's wait status, once it ended: killed if still there after `limit` s."""
+def _reap(child: int, limit: float | None) -> int | None:
+    """The child's wait status once it ended (killed if still there after `limit` s), or
+    None if it cannot be read (SIGCHLD ignored)."""
     deadline = None if limit is None else time.monotonic() + limit
     while True:
         try:
@@ -125,12 +165,14 @@ def _reap(child: int, limit: float | None) -> int:
             os.kill(child, signal.SIGKILL)
             deadline = None
         except ChildProcessError:
-            return 0
-        except KeyboardInterrupt:  # a second Ctrl-C: stop waiting
+            return None
+        except KeyboardInterrupt:  # Ctrl-C while waiting: stop waiting
             deadline = time.monotonic()
 
 
-def _describe(status: int) -> str:
+def _describe(status: int | None) -> str:
+    if status is None:
+        return "ended"
     if os.WIFSIGNALED(status):
         number = os.WTERMSIG(status)
         try:

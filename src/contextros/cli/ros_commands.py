@@ -24,13 +24,13 @@ from contextros.errors import LayerError
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
 
-# Exit statuses: 0 success, 1 the manager refused or nodes did not acknowledge,
-# 3 no manager reachable (argparse itself uses 2 for usage errors).
+# Exit statuses: 0 success, 1 the manager refused, nodes did not acknowledge or the outcome
+# is unknown, 3 no manager reachable, 130 interrupted (argparse itself uses 2 for usage).
 FAILED = 1
 USAGE = 2
 NO_MANAGER = 3
-# A command's answer that is not a result: its exit status.
-_FAILURES = {"usage": USAGE, "no_manager": NO_MANAGER, "interrupted": INTERRUPTED}
+# The exit status of an answer that is not a result, by its outcome.
+_OUTCOME_STATUS = {"usage": USAGE, "no_manager": NO_MANAGER, "interrupted": INTERRUPTED}
 # The commands the daemon answers (contextros.cli.daemon) when it runs.
 DAEMON_SERVED = ("activate", "deactivate", "switch", "status")
 
@@ -332,7 +332,7 @@ def _report(args: argparse.Namespace, on: list[str], answer: dict[str, Any]) -> 
     """Print an activation's answer (the daemon's or this command's own); its exit status."""
     if answer["outcome"] != "result":
         print(f"contextros: {answer['message']}", file=sys.stderr)
-        return _FAILURES.get(answer["outcome"], FAILED)
+        return _OUTCOME_STATUS.get(answer["outcome"], FAILED)
     return _print_result(args, on, answer["result"])
 
 
@@ -445,14 +445,14 @@ def run_status(args: argparse.Namespace) -> int:
     answer = _through_daemon(args, {"command": "status"})
     if answer is not None:
         return _show_status(args, answer)
-    with answered_in_child(partial(_status_directly, args), "run the command again") as answer:
+    with answered_in_child(partial(_status_directly, args), "nothing was changed") as answer:
         return _show_status(args, answer)
 
 
 def _show_status(args: argparse.Namespace, answer: dict[str, Any]) -> int:
     if answer["outcome"] != "registry":
         print(f"contextros: {answer['message']}", file=sys.stderr)
-        return _FAILURES.get(answer["outcome"], FAILED)
+        return _OUTCOME_STATUS.get(answer["outcome"], FAILED)
     if args.json:
         print(json.dumps(answer["registry"], indent=2))
     else:

@@ -116,12 +116,12 @@ class DaemonServer:
             # On the way out ROS shuts down before the workers are joined: a command still
             # waiting (for the manager, for acknowledgements) ends now, not at its deadline.
             stack.callback(rclpy.try_shutdown)
+            stack.callback(faulthandler.dump_traceback_later, TEARDOWN_LIMIT, exit=True)
             workers.submit(self._warm_up)
             domain = os.environ.get("ROS_DOMAIN_ID", "0")
             log(f"serving {self.place.socket} (ROS_DOMAIN_ID={domain})")
             self._serve(listener, workers)
             log("stopping")
-            faulthandler.dump_traceback_later(TEARDOWN_LIMIT, exit=True)
         return 0
 
     def _listen(self) -> socket.socket:
