@@ -134,6 +134,7 @@ def _as_manager_topic(topic: str) -> str:
 def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
     from rclpy.node import Node
 
+    from contextros.cli.ros_commands import TEARDOWN_LIMIT
     from contextros.ros import spin_nodes
     from contextros.ros.recorder import Recorder, TopicNameError
 
@@ -147,8 +148,13 @@ def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
         print(f"contextros record: cannot write {args.output}: {error.strerror}", file=sys.stderr)
         return USAGE
     print(f"recording to {args.output} (Ctrl-C stops)", file=sys.stderr, flush=True)
-    try:
-        spin_nodes([node], timeout=args.duration)
+    try:  # the file is complete before the node's teardown, whatever that does
+        spin_nodes(
+            [node],
+            timeout=args.duration,
+            before_teardown=recorder.finish,
+            teardown_limit=TEARDOWN_LIMIT,
+        )
     finally:
         recorder.finish()
     counts = ", ".join(f"{topic}: {n}" for topic, n in sorted(recorder.counts.items()))
@@ -185,9 +191,11 @@ def _dashboard(args: argparse.Namespace) -> int:
 
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
+    from contextros.cli.ros_commands import TEARDOWN_LIMIT
     from contextros.dashboard.model import DashboardModel
     from contextros.dashboard.server import DashboardServer, serve
     from contextros.ros.dashboard_node import DashboardNode
+    from contextros.ros.spinning import bounded_teardown
 
     model = DashboardModel(args.robots)
     server = DashboardServer(model)
@@ -216,8 +224,9 @@ def _dashboard(args: argparse.Namespace) -> int:
         )
         return USAGE
     finally:
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
+        with bounded_teardown(TEARDOWN_LIMIT):
+            executor.shutdown(timeout_sec=1.0)
+            node.destroy_node()
     return 0
 
 

@@ -31,6 +31,9 @@ USAGE = 2
 NO_MANAGER = 3
 # The exit status of an answer that is not a result, by its outcome.
 _OUTCOME_STATUS = {"usage": USAGE, "no_manager": NO_MANAGER, "interrupted": INTERRUPTED}
+# Seconds a long-running command (manager, watch, record, dashboard) may take to tear its
+# node down once stopped: see contextros.ros.spinning.bounded_teardown.
+TEARDOWN_LIMIT = 10.0
 # The commands the daemon answers (contextros.cli.daemon) when it runs.
 DAEMON_SERVED = ("activate", "deactivate", "switch", "status")
 
@@ -269,7 +272,7 @@ def run_manager(args: argparse.Namespace) -> int:
             except LayerError as error:
                 print(f"contextros manager: {error}", file=sys.stderr)
                 return FAILED
-            spin_nodes([node], lean=True)
+            spin_nodes([node], lean=True, teardown_limit=TEARDOWN_LIMIT)
     except RosArgumentsError as error:
         return usage_error(error)
     return 0
@@ -622,7 +625,10 @@ def _watch(args: argparse.Namespace) -> int:
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
     spin_nodes(
-        [node], until=lambda: watch.finished(args.count, time.monotonic()), timeout=args.duration
+        [node],
+        until=lambda: watch.finished(args.count, time.monotonic()),
+        timeout=args.duration,
+        teardown_limit=TEARDOWN_LIMIT,
     )
     return 0
 

@@ -7,10 +7,11 @@ decisive configuration too, as they must: it is one process).
 from __future__ import annotations
 
 import contextlib
+import faulthandler
 import signal
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from types import FrameType
 from typing import Any
 
@@ -30,6 +31,8 @@ def spin_nodes(
     until: Callable[[], bool] | None = None,
     timeout: float | None = None,
     lean: bool = False,
+    before_teardown: Callable[[], None] | None = None,
+    teardown_limit: float | None = None,
 ) -> None:
     """Spin `nodes` in one single-threaded executor until shutdown, `until()` or `timeout`.
 
@@ -44,6 +47,10 @@ def spin_nodes(
     Context nodes whose callbacks are plain functions may too (a third of the CPU per
     activation, docs/protocol.md "Spinning lean"); it raises UnsupportedEntityError on a
     coroutine callback or an action.
+
+    `before_teardown` runs once the spin ended, before the nodes are destroyed (to close
+    what must be closed, whatever the teardown does). `teardown_limit`, for a program's
+    main: see `bounded_teardown`.
     """
     executor: SingleThreadedExecutor | WaitLoop
     if lean:
@@ -68,13 +75,35 @@ def spin_nodes(
         if rclpy.ok():
             raise
     finally:
-        # Last created first: nodes hosted by a shared participant leave before its carrier,
-        # so the participant is never handed over on the way out.
-        for node in reversed(nodes):
-            with contextlib.suppress(Exception):
-                node.destroy_node()
-        executor.shutdown(timeout_sec=0.5)
-        _restore_signals(previous)
+        try:
+            if before_teardown is not None:
+                before_teardown()
+        finally:
+            with bounded_teardown(teardown_limit):
+                # Last created first: nodes hosted by a shared participant leave before its
+                # carrier, so the participant is never handed over on the way out.
+                for node in reversed(nodes):
+                    with contextlib.suppress(Exception):
+                        node.destroy_node()
+                executor.shutdown(timeout_sec=0.5)
+            _restore_signals(previous)
+
+
+@contextlib.contextmanager
+def bounded_teardown(limit: float | None) -> Iterator[None]:
+    """For a program's main: if the block (tearing nodes down) takes more than `limit`
+    seconds, the process ends with status 1 and every thread's stack on stderr. Under
+    discovery churn Fast DDS 3.2 can deadlock deleting a participant while rclpy holds the
+    GIL, where no Python code (a signal handler included) runs again; faulthandler's
+    watchdog is a C thread. None: no limit (a library must not end its user's process)."""
+    if limit is None:
+        yield
+        return
+    faulthandler.dump_traceback_later(limit, exit=True)
+    try:
+        yield
+    finally:
+        faulthandler.cancel_dump_traceback_later()
 
 
 _Handlers = dict[signal.Signals, Any]
