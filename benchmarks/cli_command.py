@@ -14,7 +14,7 @@ the floor any rclpy command has: a plain rclpy script (`python -m benchmarks.cli
 plain LAYER`) that sends the same request to the manager's activation service (import rclpy
 and the service type, init, a node, wait for the service, call, shut down) with nothing of
 ContextROS. With `CONTEXTROS_BEFORE=<a source tree>`, that tree's `contextros activate` runs
-in the same rounds too (against the same manager).
+in the same rounds too (against the same manager), through its daemon and with `--no-daemon`.
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ NO_DAEMON = "contextros activate LAYER --sync --no-daemon"
 VERSION = "contextros --version"
 PLAIN = "python -m benchmarks.cli_command plain LAYER"
 BEFORE = "before: contextros activate LAYER --sync"
+BEFORE_NO_DAEMON = "before: contextros activate LAYER --sync --no-daemon"
 
 
 def plain(layer: str) -> int:
@@ -100,7 +101,7 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
     tree = os.environ.get("CONTEXTROS_BEFORE")
     before_env = env | before_environment(Path(tree)) if tree else {}
     if tree:
-        cases.append(BEFORE)
+        cases += [BEFORE, BEFORE_NO_DAEMON]
     samples: dict[str, list[float]] = {case: [] for case in cases}
     failures = dict.fromkeys(cases, 0)
     load_before = os.getloadavg()[0]
@@ -129,6 +130,11 @@ def run(rounds: int = ROUNDS) -> list[dict[str, Any]]:
                 VERSION: (["--version"], env, "contextros"),
                 BEFORE: (
                     ["activate", "LAYER", "--sync", "--timeout", "5"],
+                    before_env,
+                    "contextros",
+                ),
+                BEFORE_NO_DAEMON: (
+                    ["activate", "LAYER", "--sync", "--timeout", "5", "--no-daemon"],
                     before_env,
                     "contextros",
                 ),
