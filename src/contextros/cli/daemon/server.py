@@ -47,7 +47,7 @@ DEFAULT_IDLE_TIMEOUT = 900.0
 WARM_UP_WAIT = 5.0
 # Seconds the way out may take (commands in flight end, nodes and rclpy are torn down):
 # Fast DDS can deadlock deleting a participant while holding the GIL, so a C thread
-# (faulthandler's) ends the process then, with the stack it hung in in the log.
+# (faulthandler's) ends the process then, writing the stack it hung in to the log.
 TEARDOWN_LIMIT = 10.0
 
 
