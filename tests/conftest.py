@@ -30,16 +30,3 @@ def processes() -> Iterator[ProcessGroup]:
         yield group
     finally:
         group.kill_all()
-
-
-# Tests whose set-up takes a minute in one worker (a wheel built and installed, then a C++
-# project against it): they start first, so the other workers share the rest meanwhile
-# instead of waiting at the end for the one that took them last.
-LONG_SET_UP = ("tests/install/test_wheel.py",)
-
-
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    def long_first(item: pytest.Item) -> bool:
-        return not item.nodeid.startswith(LONG_SET_UP)
-
-    items.sort(key=long_first)  # stable: the same order in every xdist worker
