@@ -281,9 +281,7 @@ def run_manager(args: argparse.Namespace) -> int:
 # -- clients --------------------------------------------------------------------------------
 
 
-def _open_client(
-    args: argparse.Namespace, purpose: str, requester: str, teardown: ExitStack
-) -> LayerClient:
+def _open_client(args: argparse.Namespace, purpose: str, teardown: ExitStack) -> LayerClient:
     """A LayerClient on a short-lived node of this command's own (in the namespace the
     command line gives); the node and rclpy are torn down when `teardown` closes."""
     from contextros.ros import LayerClient
@@ -293,7 +291,7 @@ def _open_client(
     teardown.enter_context(ros_session(args))
     node = quiet_node(f"contextros_{purpose}_{os.getpid()}")
     teardown.callback(node.destroy_node)
-    return LayerClient(node, requester=requester)
+    return LayerClient(node)
 
 
 def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
@@ -306,26 +304,23 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
     if args.expect_count < 0:
         print("contextros: --expect-count must be 0 or more", file=sys.stderr)
         return 2
-    requester = _requester()  # this command's process, wherever the command is sent from
-    answer = _through_daemon(
-        args,
-        {
-            "command": "activate",
-            "on": on,
-            "off": off,
-            "sync": args.sync,
-            "timeout": args.timeout,
-            "atomic": args.atomic,
-            "expect": args.expect,
-            "expect_count": args.expect_count,
-            "reason": args.reason,
-            "requester": requester,
-        },
-    )
+    request = {
+        "command": "activate",
+        "on": on,
+        "off": off,
+        "sync": args.sync,
+        "timeout": args.timeout,
+        "atomic": args.atomic,
+        "expect": args.expect,
+        "expect_count": args.expect_count,
+        "reason": args.reason,
+        "requester": _requester(),  # this command's process, whoever sends the command
+    }
+    answer = _through_daemon(args, request)
     if answer is not None:
         return _report(args, on, answer)
     with answered_in_child(
-        partial(_send_directly, args, on, off, requester),
+        partial(_asked_directly, args, request),
         "whether it was carried out is unknown; see `contextros status`",
     ) as answer:
         return _report(args, on, answer)
@@ -361,37 +356,20 @@ def _through_daemon(args: argparse.Namespace, request: dict[str, Any]) -> dict[s
     )
 
 
-def _send_directly(
-    args: argparse.Namespace, on: list[str], off: list[str], requester: str, teardown: ExitStack
+def _asked_directly(
+    args: argparse.Namespace, request: dict[str, Any], teardown: ExitStack
 ) -> dict[str, Any]:
-    """The same answer as the daemon's, from a client node of the calling process (the
+    """The daemon's answer to `request`, from a client node of the calling process (the
     command's child: see answered_in_child)."""
     if problem := _ros_problem(args):
         return problem
     try:
-        client = _open_client(args, "cli", requester, teardown)
+        client = _open_client(args, request["command"], teardown)
     except RosArgumentsError as error:
         return {"outcome": "usage", "message": str(error)}
-    try:
-        client.wait_for_manager(args.wait_manager)
-    except LayerError as error:
-        return {"outcome": "no_manager", "message": str(error)}
-    try:
-        result = client.request(
-            on,
-            off,
-            synchronous=args.sync,
-            timeout=args.timeout,
-            reason=args.reason,
-            expect_nodes=args.expect,
-            expect_count=args.expect_count,
-            atomic=args.atomic,
-        )
-    except LayerError as error:
-        return {"outcome": "failed", "message": str(error)}
-    from contextros.cli.daemon.wire import result_as_dict
+    from contextros.cli.client_answers import client_answer
 
-    return {"outcome": "result", "result": result_as_dict(result)}
+    return client_answer(client, request | {"wait_manager": args.wait_manager})
 
 
 def _ros_problem(args: argparse.Namespace) -> dict[str, Any] | None:
@@ -445,10 +423,13 @@ def _reordered(requested: list[str], active: tuple[str, ...], message: str) -> s
 
 
 def run_status(args: argparse.Namespace) -> int:
-    answer = _through_daemon(args, {"command": "status"})
+    request = {"command": "status"}
+    answer = _through_daemon(args, request)
     if answer is not None:
         return _show_status(args, answer)
-    with answered_in_child(partial(_status_directly, args), "nothing was changed") as answer:
+    with answered_in_child(
+        partial(_asked_directly, args, request), "nothing was changed"
+    ) as answer:
         return _show_status(args, answer)
 
 
@@ -461,23 +442,6 @@ def _show_status(args: argparse.Namespace, answer: dict[str, Any]) -> int:
     else:
         print(_registry_as_text(answer["registry"]))
     return 0
-
-
-def _status_directly(args: argparse.Namespace, teardown: ExitStack) -> dict[str, Any]:
-    if problem := _ros_problem(args):
-        return problem
-    from contextros.ros.messages import registry_to_dict
-
-    try:
-        client = _open_client(args, "status", _requester(), teardown)
-    except RosArgumentsError as error:
-        return {"outcome": "usage", "message": str(error)}
-    try:
-        client.wait_for_manager(args.wait_manager)
-        registry = client.query()
-    except LayerError as error:
-        return {"outcome": "no_manager", "message": str(error)}
-    return {"outcome": "registry", "registry": registry_to_dict(registry)}
 
 
 def _table(header: list[str], rows: list[list[str]]) -> str:

@@ -24,17 +24,10 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import ExitStack
 from typing import IO, TYPE_CHECKING, Any
 
+from contextros.cli.client_answers import client_answer
 from contextros.cli.daemon.place import DaemonPlace
-from contextros.cli.daemon.wire import (
-    MAX_REQUEST,
-    WireError,
-    receive,
-    request_problem,
-    result_as_dict,
-    send,
-)
+from contextros.cli.daemon.wire import MAX_REQUEST, WireError, receive, request_problem, send
 from contextros.errors import LayerError
-from contextros.identity import default_requester
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -220,29 +213,7 @@ class DaemonServer:
             client = self._client(request["namespace"])
         except _TooManyNamespaces:
             return {"outcome": "busy", "message": "too many namespaces in one daemon"}
-        try:
-            client.wait_for_manager(request["wait_manager"])
-            if command == "status":
-                from contextros.ros.messages import registry_to_dict
-
-                return {"outcome": "registry", "registry": registry_to_dict(client.query())}
-        except LayerError as error:
-            return {"outcome": "no_manager", "message": str(error)}
-        client.requester = request["requester"] or default_requester()
-        try:
-            result = client.request(
-                request["on"],
-                request["off"],
-                synchronous=request["sync"],
-                timeout=request["timeout"],
-                reason=request["reason"],
-                expect_nodes=request["expect"],
-                expect_count=request["expect_count"],
-                atomic=request["atomic"],
-            )
-        except LayerError as error:
-            return {"outcome": "failed", "message": str(error)}
-        return {"outcome": "result", "result": result_as_dict(result)}
+        return client_answer(client, request)
 
     def _client(self, namespace: str | None) -> LayerClient:
         """This worker's client in `namespace`, created on first use."""
