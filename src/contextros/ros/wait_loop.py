@@ -210,10 +210,10 @@ class WaitLoop:
         self._timer_info_arguments = {
             timer: argument for timer in timers if (argument := _timer_info_argument(timer))
         }
-        events = [(w, event) for w in waitables if (event := _event_handle(w)) is not None]
-        self._event_handlers = [handler for handler, _ in events]
-        self._event_handles = [event for _, event in events]
-        self._waitables = [w for w in waitables if _event_handle(w) is None]
+        events = [(waitable, _event_handle(waitable)) for waitable in waitables]
+        self._event_handlers = [handler for handler, event in events if event is not None]
+        self._event_handles = [event for _, event in events if event is not None]
+        self._waitables = [waitable for waitable, event in events if event is None]
 
     def _run_timer(self, timer: Any) -> None:
         if not timer.handle.is_timer_ready():
