@@ -255,13 +255,17 @@ def run_manager(args: argparse.Namespace) -> int:
     rules = bindings = None
     if args.layer_files:
         from contextros.bindings import Bindings
+        from contextros.language.diagnostics import LayerLanguageError
+        from contextros.ros.message_types import installed_message_type
         from contextros.rules import RuleSet
 
         try:
-            rules = RuleSet.from_files(args.layer_files)
+            # What `contextros check` refuses, with the fields of the declared topics too.
+            rules = RuleSet.from_files(args.layer_files, message_types=installed_message_type)
             bindings = Bindings.from_files(args.layer_files)
         except LayerError as error:
-            print(f"contextros manager: the layer files have errors:\n{error}", file=sys.stderr)
+            listed = error.render() if isinstance(error, LayerLanguageError) else str(error)
+            print(f"contextros manager: the layer files have errors:\n{listed}", file=sys.stderr)
             return USAGE
     try:
         with ros_session(args):

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from contextros.language.diagnostics import DiagnosticSink
 from contextros.language.literals import string_literal
@@ -388,6 +388,34 @@ def parse_rule(name: Ref, text: str, line: int, col: int, sink: DiagnosticSink) 
         return parser.rule(name, text[: max(0, parser.end_col - col)].strip())
     except _Stop:
         return None
+
+
+# Which way hysteresis moves a threshold against a number so that the condition holds
+# longer: `x < 20 hysteresis 5` holds until x >= 25 (under `not`, the other way).
+_RELAX = {"<": 1.0, "<=": 1.0, ">": -1.0, ">=": -1.0}
+_MIRRORED = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}
+
+
+def relaxed(condition: Condition, margin: float, sign: float = 1.0) -> Condition:
+    """`condition` as a 'while' rule with `hysteresis margin` evaluates it once it holds:
+    each threshold against a number moved by `margin` the way that keeps it true (`x < 20`
+    becomes `x < 25`; under `not`, the other way; `==` and `!=` stay). The engine runs
+    it, and the contradiction check reads it, so both mean the same condition."""
+    if not margin:
+        return condition
+    if isinstance(condition, Not):
+        return Not(relaxed(condition.operand, margin, -sign), condition.at)
+    if isinstance(condition, BoolOp):
+        operands = tuple(relaxed(operand, margin, sign) for operand in condition.operands)
+        return BoolOp(condition.op, operands, condition.at)
+    left, op, right = condition.left, condition.op, condition.right
+    if isinstance(right, Literal) and isinstance(right.value, float):
+        moved = right.value + _RELAX.get(op, 0.0) * sign * margin
+        return replace(condition, right=Literal(moved, right.at))
+    if isinstance(left, Literal) and isinstance(left.value, float):
+        moved = left.value + _RELAX.get(_MIRRORED.get(op, op), 0.0) * sign * margin
+        return replace(condition, left=Literal(moved, left.at))
+    return condition
 
 
 def condition_text(condition: Condition) -> str:

@@ -7,11 +7,12 @@ so both report the same errors. Imports message packages (`pkg.msg`), never rclp
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import re
 from typing import Any
 
-from contextros.rules.ruleset import FieldKind, FieldLookup
+from contextros.rules.ruleset import FieldKind, FieldLookup, NoSuchMessageType
 
 _TYPE_NAME = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/msg/([A-Za-z_][A-Za-z0-9_]*)$")
 _NESTED = re.compile(r"^([A-Za-z_][A-Za-z0-9_]*)/([A-Za-z_][A-Za-z0-9_]*)$")
@@ -49,7 +50,10 @@ def message_class(type_name: str) -> Any:
         raise ValueError(f"message package {package!r} is not installed here: {error}") from error
     cls = getattr(module, name, None)
     if cls is None or not hasattr(cls, "get_fields_and_field_types"):
-        raise ValueError(f"{package}.msg has no message type {name!r}")
+        types = [n for n, v in vars(module).items() if hasattr(v, "get_fields_and_field_types")]
+        close = difflib.get_close_matches(name, types, n=3)
+        hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+        raise NoSuchMessageType(f"{package}.msg has no message type {name!r}{hint}")
     return cls
 
 

@@ -22,6 +22,7 @@ from contextros.language.rules import (
     Not,
     RuleDecl,
     condition_text,
+    relaxed,
 )
 from contextros.rules.ruleset import RuleSet
 
@@ -33,9 +34,6 @@ _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
     "==": operator.eq,
     "!=": operator.ne,
 }
-# A 'while' rule with hysteresis, once true, stays true until a threshold is passed by the
-# margin: `x < 20 hysteresis 5` holds until x >= 25 (the sign per operator, flipped by `not`).
-_RELAX = {"<": 1.0, "<=": 1.0, ">": -1.0, ">=": -1.0}
 
 Latest = Mapping[str, Any]
 Evaluator = Callable[[Latest], bool]
@@ -105,17 +103,22 @@ def _operand(operand: FieldRef | Literal) -> Callable[[Latest], Any]:
 
 def compile_condition(condition: Condition, margin: float = 0.0, sign: float = 1.0) -> Evaluator:
     """A closure computing `condition` from the latest message of each topic. With `margin`,
-    thresholds against numbers move by it so that the condition holds longer (hysteresis)."""
+    thresholds against numbers move by it so that the condition holds longer (hysteresis,
+    `contextros.language.rules.relaxed`)."""
+    return _compiled(relaxed(condition, margin, sign))
+
+
+def _compiled(condition: Condition) -> Evaluator:
     if isinstance(condition, Not):
-        inner = compile_condition(condition.operand, margin, -sign)
+        inner = _compiled(condition.operand)
         return lambda latest: not inner(latest)
     if isinstance(condition, BoolOp):
-        parts = [compile_condition(c, margin, sign) for c in condition.operands]
+        parts = [_compiled(c) for c in condition.operands]
         combined = parts[0]
         for part in parts[1:]:  # nested closures short-circuit like the Python operators
             combined = _both(combined, part) if condition.op == "and" else _either(combined, part)
         return combined
-    return _comparison(condition, margin, sign)
+    return _comparison(condition)
 
 
 def _both(first: Evaluator, second: Evaluator) -> Evaluator:
@@ -126,20 +129,12 @@ def _either(first: Evaluator, second: Evaluator) -> Evaluator:
     return lambda latest: first(latest) or second(latest)
 
 
-def _comparison(condition: Comparison, margin: float, sign: float) -> Evaluator:
+def _comparison(condition: Comparison) -> Evaluator:
     left = _operand(condition.left)
     if condition.right is None:
         return lambda latest: bool(left(latest))
-    op, right_operand = condition.op, condition.right
-    if margin and isinstance(right_operand, Literal) and isinstance(right_operand.value, float):
-        shifted = right_operand.value + _RELAX.get(op, 0.0) * sign * margin
-        right_operand = Literal(shifted, right_operand.at)
-    elif margin and isinstance(condition.left, Literal) and isinstance(condition.left.value, float):
-        mirrored = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
-        shifted = condition.left.value + _RELAX.get(mirrored, 0.0) * sign * margin
-        left = _operand(Literal(shifted, condition.left.at))
-    right = _operand(right_operand)
-    compare = _OPERATORS[op]
+    right = _operand(condition.right)
+    compare = _OPERATORS[condition.op]
     return lambda latest: compare(left(latest), right(latest))
 
 

@@ -7,7 +7,13 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
+from contextros.language.checker import check as check_layer_file
+from contextros.language.diagnostics import (
+    Diagnostic,
+    DiagnosticSink,
+    LayerSyntaxError,
+    sorted_diagnostics,
+)
 from contextros.language.flavours import parse_files
 from contextros.language.positions import Position, Ref
 from contextros.language.rules import (
@@ -19,6 +25,7 @@ from contextros.language.rules import (
     Not,
     RuleDecl,
     parse_rule,
+    relaxed,
 )
 from contextros.language.topics import TopicDecl
 
@@ -28,9 +35,16 @@ FieldKind = str | None
 # Looks up the kind of a field path in the message type of one topic.
 FieldLookup = Callable[[tuple[str, ...]], FieldKind]
 # The field lookup of a message type named PACKAGE/msg/NAME; raises ValueError saying why
-# when the type is not available here. The rules never import a message package themselves:
-# the caller passes this in (`contextros check` passes the installed interfaces').
+# when the type is not available here (NoSuchMessageType when its package is there but has
+# no such type). The rules never import a message package themselves: the caller passes
+# this in (`contextros check` and the manager pass the installed interfaces').
 MessageTypes = Callable[[str], FieldLookup]
+
+
+class NoSuchMessageType(ValueError):
+    """A `MessageTypes` lookup found the type's package but no such type in it: a misspelt
+    name (`sensor_msgs/msg/BateryState`), an error wherever it is checked. A package not
+    installed here is a plain ValueError: the robot may have it."""
 
 
 @dataclass(frozen=True)
@@ -64,20 +78,33 @@ class RuleSet:
 
     @classmethod
     def from_files(
-        cls, paths: Iterable[str | os.PathLike[str]], language: str | None = None
+        cls,
+        paths: Iterable[str | os.PathLike[str]],
+        language: str | None = None,
+        message_types: MessageTypes | None = None,
     ) -> RuleSet:
-        """The rules of layer files (either flavour); LayerSyntaxError lists every error."""
+        """The rules of layer files (either flavour). Each file is checked as `contextros
+        check` checks it (with `message_types`, the declared topics' fields too), then the
+        files together (a rule name or a topic's type declared twice across them);
+        LayerSyntaxError lists every error, file by file in the order given."""
         rules: list[RuleDecl] = []
         topics: list[TopicDecl] = []
         sources: dict[str, str] = {}
         parsed, errors = parse_files(paths, language)
         for name, source, layer_file in parsed:
+            errors += [d for d in check_layer_file(layer_file, message_types) if d.is_error]
             rules += layer_file.rules
             topics += layer_file.topics
             sources[name] = source
         result = cls(rules, sources, topics)
-        errors += [d for d in result.check() if d.is_error]
+        together = result.check()
+        if message_types is not None:
+            together += result.check_declared_fields(message_types)
+        errors += [d for d in together if d.is_error]
         if errors:
+            order = {name: index for index, name in enumerate(sources)}
+            errors = sorted_diagnostics(errors)  # one of each (a file's own: found twice)
+            errors.sort(key=lambda d: order.get(d.path, -1))  # stable: by line within a file
             raise LayerSyntaxError(errors)
         return result
 
@@ -142,10 +169,13 @@ class RuleSet:
             for second in self.rules[index + 1 :]:
                 clash = _contradiction(first, second, relations or {})
                 if clash:
+                    only_relaxed = not _contradiction(first, second, relations or {}, False)
+                    hysteresis = _through_hysteresis(first, second) if only_relaxed else ""
                     sink = self.sink_for(second)
                     sink.warning(
                         f"rules {first.name} ({self.where(first)}) and {second.name} may hold at "
-                        f"the same time and {clash}: when both fire together, {first.name} "
+                        f"the same time{hysteresis} and {clash}: when both fire together, "
+                        f"{first.name} "
                         "(declared first) wins and the other is logged as overridden; make "
                         "their conditions exclusive",
                         second.at.line,
@@ -181,34 +211,44 @@ class RuleSet:
     def check_declared_fields(self, message_types: MessageTypes) -> list[Diagnostic]:
         """The field checks of `check_fields`, offline: each topic's type from its `topic`
         declaration, its fields from `message_types` (the same lookup the manager uses on
-        the type it sees on the ROS graph, so the same errors, word for word). A rule on a
-        topic not declared, or declared with a type not available here, gets a note: its
-        fields are checked by the manager at run time."""
+        the type it sees on the ROS graph, so the same errors, word for word). A declared
+        type its installed package does not have is an error at the declaration. A rule on
+        a topic not declared, or declared with a type whose package is not installed here,
+        gets a note: its fields are checked by the manager at run time."""
         found: list[Diagnostic] = []
-        known: dict[str, tuple[FieldLookup, str]] = {}
+        lookups: dict[str, FieldLookup] = {}
         unknown: dict[str, str] = {}  # topic -> why its fields cannot be checked here
-        for topic in self.topics():
-            declaration = self.topic_types.get(topic)
-            if declaration is None:
-                unknown[topic] = f"it has no declaration ('topic {topic}: PACKAGE/msg/TYPE')"
-                continue
+        for declaration in self.topic_types.values():
             try:
-                lookup = message_types(declaration.type_name)
+                lookups[declaration.topic] = message_types(declaration.type_name)
+            except NoSuchMessageType as error:
+                sink = self.sink_for(declaration)
+                sink.error(
+                    f"the declared type of topic '{declaration.topic}' does not exist: {error}",
+                    declaration.type_at.line,
+                    declaration.type_at.col,
+                )
+                found += sink.items
             except ValueError as error:
-                unknown[topic] = (
+                unknown[declaration.topic] = (
                     f"its declared type {declaration.type_name} ({self.where(declaration)}) "
                     f"is not available here: {error}"
                 )
-                continue
+        known: dict[str, tuple[FieldLookup, str]] = {}
+        for topic in self.topics():
+            if topic not in self.topic_types:
+                unknown[topic] = f"it has no declaration ('topic {topic}: PACKAGE/msg/TYPE')"
+            if topic not in lookups:
+                continue  # not declared, not available (a note below) or misspelt (an error)
+            type_name = self.topic_types[topic].type_name
             try:
-                found += self.check_fields(topic, lookup, declaration.type_name, known)
+                found += self.check_fields(topic, lookups[topic], type_name, known)
             except ValueError as error:  # a nested type not available here
                 unknown[topic] = (
-                    f"a type inside its declared type {declaration.type_name} is not "
-                    f"available here: {error}"
+                    f"a type inside its declared type {type_name} is not available here: {error}"
                 )
                 continue
-            known[topic] = (lookup, declaration.type_name)
+            known[topic] = (lookups[topic], type_name)
         for rule in self.rules:
             sink = self.sink_for(rule)
             first_refs: dict[str, FieldRef] = {}
@@ -362,27 +402,45 @@ def _shown(literal: Literal) -> str:
 Outcome = tuple[str, str]  # ("on" | "off", layer)
 
 
-def _outcomes(rule: RuleDecl) -> list[tuple[Outcome, Condition | None, bool]]:
-    """(what happens, the condition under which, whether that condition is negated)."""
+def _outcomes(rule: RuleDecl, hysteresis: bool = True) -> list[tuple[Outcome, Condition, bool]]:
+    """(what happens, the condition under which it holds, whether that condition is
+    negated). A 'while' rule with hysteresis keeps its layer while the relaxed condition
+    holds (`x < 20 hysteresis 5`: until x >= 25), and its other outcome while the strict one
+    does not (x >= 20): the widest each can be in force (without `hysteresis`: the strict
+    condition both ways)."""
     if rule.mode == "activate":
         return [(("on", rule.layer.name), rule.condition, False)]
     if rule.mode == "deactivate":
         return [(("off", rule.layer.name), rule.condition, False)]
     otherwise = ("on", rule.otherwise.name) if rule.otherwise else ("off", rule.layer.name)
-    return [(("on", rule.layer.name), rule.condition, False), (otherwise, rule.condition, True)]
+    holding = relaxed(rule.condition, rule.hysteresis) if hysteresis else rule.condition
+    return [(("on", rule.layer.name), holding, False), (otherwise, rule.condition, True)]
 
 
 def _contradiction(
     first: RuleDecl,
     second: RuleDecl,
     relations: Mapping[str, tuple[frozenset[str], frozenset[str]]],
+    hysteresis: bool = True,
 ) -> str:
-    for a, cond_a, neg_a in _outcomes(first):
-        for b, cond_b, neg_b in _outcomes(second):
+    for a, cond_a, neg_a in _outcomes(first, hysteresis):
+        for b, cond_b, neg_b in _outcomes(second, hysteresis):
             why = _clashes(a, b, relations)
             if why and not _disjoint(cond_a, neg_a, cond_b, neg_b):
                 return why
     return ""
+
+
+def _through_hysteresis(first: RuleDecl, second: RuleDecl) -> str:
+    """Why two contradicting rules hold together only through hysteresis ('' if not)."""
+    margins = [rule for rule in (first, second) if rule.hysteresis and rule.mode == "while"]
+    if not margins:
+        return ""
+    kept = " and ".join(
+        f"{rule.name}'s hysteresis {rule.hysteresis:g} keeps it holding past its threshold"
+        for rule in margins
+    )
+    return f" ({kept})"
 
 
 def _clashes(
@@ -407,11 +465,9 @@ def _clashes(
 Interval = tuple[float, bool, float, bool]  # low, low inclusive, high, high inclusive
 
 
-def _constraints(condition: Condition | None, negated: bool) -> dict[str, Interval] | None:
+def _constraints(condition: Condition, negated: bool) -> dict[str, Interval] | None:
     """The condition as one interval per numeric field, if it is a conjunction of
     comparisons of fields with numbers (else None: nothing is known)."""
-    if condition is None:
-        return None
     if isinstance(condition, Not):
         return _constraints(condition.operand, not negated)
     if isinstance(condition, BoolOp):
@@ -459,9 +515,9 @@ def _empty(interval: Interval) -> bool:
     return low > high or (low == high and not (low_in and high_in))
 
 
-def _disjoint(a: Condition | None, neg_a: bool, b: Condition | None, neg_b: bool) -> bool:
+def _disjoint(a: Condition, neg_a: bool, b: Condition, neg_b: bool) -> bool:
     """True only when the two conditions provably cannot hold at once."""
-    if a is b and a is not None and neg_a != neg_b:
+    if a is b and neg_a != neg_b:
         return True
     first, second = _constraints(a, neg_a), _constraints(b, neg_b)
     if first is None or second is None:
