@@ -1,7 +1,7 @@
 """`make bench`: run every benchmark in one process run and write docs/benchmarks.md.
 
 Each section is a module with `run() -> rows` and `markdown(rows) -> str`, and
-optionally `plot(rows, path)`; a section whose module is missing is reported as such.
+optionally `plot(rows, path)`. `python -m benchmarks --help` lists them.
 """
 
 from __future__ import annotations
@@ -12,7 +12,10 @@ import os
 import platform
 import sys
 import time
+import traceback
 from pathlib import Path
+
+from benchmarks import regressions
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 
@@ -62,10 +65,95 @@ def machine() -> str:
     )
 
 
-def main() -> int:
-    only = set(sys.argv[1:])
+USAGE = """usage: python -m benchmarks [SECTION ...]
+
+Runs the benchmark sections (all of them, in this order, without SECTION) and writes what
+they measure into docs/benchmarks.md: each measured section in place, the others kept. The
+page is written after every section; a section that fails is reported, keeps its previous
+results, and the run goes on (exit status 1 at the end). Every ratio more than 15% worse
+than on the page it replaces is listed at the page's top and at the end of the run
+(REGRESSED). `make bench` installs what the sections need first.
+
+sections:
+{sections}"""
+
+
+def usage() -> str:
+    width = max(len(name) for name, _ in SECTIONS)
+    return USAGE.format(
+        sections="\n".join(f"  {name:<{width}}  {title}" for name, title in SECTIONS)
+    )
+
+
+def main(argv: list[str] | None = None, page: Path | None = None) -> int:
+    """Runs the sections named in `argv` (all without), writing `page` after each one."""
+    args = sys.argv[1:] if argv is None else argv
+    if any(arg in ("-h", "--help") for arg in args):
+        print(usage())
+        return 0
+    names = [name for name, _ in SECTIONS]
+    unknown = [arg for arg in args if arg not in names]
+    if unknown:
+        print(
+            f"benchmarks: unknown section(s) {', '.join(unknown)}; the sections are: "
+            f"{', '.join(names)} (python -m benchmarks --help)",
+            file=sys.stderr,
+        )
+        return 2
+    target = page or DOCS / "benchmarks.md"
     started = time.time()
-    parts = [
+    only = set(args)
+    selected = [(name, title) for name, title in SECTIONS if not only or name in only]
+    original = target.read_text() if target.exists() else ""
+    fresh: dict[str, str] = {}  # by section name, as measured in this run
+    failed: dict[str, str] = {}
+    found: list[regressions.Regression] = []
+    for name, title in selected:
+        print(f"benchmark: {name} ...", flush=True)
+        try:
+            fresh[name] = _measure(name, title, target.parent)
+        except KeyboardInterrupt:
+            failed[name] = "interrupted"
+            _write(target, original, fresh, failed, found, full=not only)
+            raise
+        except Exception as error:  # one section's failure must not lose the others
+            traceback.print_exc()
+            failed[name] = f"{type(error).__name__}: {error}".splitlines()[0]
+            print(f"benchmark: {name} FAILED ({failed[name]}); going on", file=sys.stderr)
+            continue
+        old = _sections(original)[1].get(title, "").split(KEEP)[0]
+        found += regressions.regressions(title, old, fresh[name])
+        _write(target, original, fresh, failed, found, full=not only)
+    print(f"updated {sorted(fresh)} in {target} ({time.time() - started:.0f} s)")
+    if found:
+        print(f"{len(found)} ratio(s) more than 15% worse than on the page this run replaced:")
+        for regression in found:
+            print(f"  {regression.line()[2:]}")
+    if failed:
+        print(f"{len(failed)} section(s) FAILED (their previous results kept):", file=sys.stderr)
+        for name, why in failed.items():
+            print(f"  {name}: {why}", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _measure(name: str, title: str, docs: Path) -> str:
+    """One section's markdown, measured now."""
+    module = importlib.import_module(f"benchmarks.{name}")
+    rows = module.run()
+    parts = [f"## {title}", ""]
+    if getattr(module, "__doc__", None):
+        parts += [module.__doc__.strip(), ""]
+    parts += [module.markdown(rows), ""]
+    if hasattr(module, "plot"):
+        image = docs / f"bench-{name}.png"
+        module.plot(rows, image)
+        parts += [f"![{title}]({image.name})", ""]
+    return "\n".join(parts)
+
+
+def _head(failed: dict[str, str]) -> str:
+    lines = [
         "# Benchmarks",
         "",
         f"- Machine: {machine()}",
@@ -73,42 +161,36 @@ def main() -> int:
         f"{datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
         "- Method: cases of a table are measured side by side in one run (interleaved rounds,"
         " fastest round kept); the machine is shared, so ratios matter more than absolutes.",
-        "",
+        "- Regressions: every ratio more than 15% worse than on the page a run replaced is"
+        " listed here as REGRESSED (benchmarks/regressions.py says which figures are ratios).",
     ]
-    for name, title in SECTIONS:
-        if only and name not in only:
-            continue
-        parts += [f"## {title}", ""]
-        try:
-            module = importlib.import_module(f"benchmarks.{name}")
-        except ModuleNotFoundError as error:
-            if error.name != f"benchmarks.{name}":
-                raise
-            parts += ["Not measured: this benchmark does not exist yet.", ""]
-            continue
-        print(f"benchmark: {name} ...", flush=True)
-        rows = module.run()
-        if getattr(module, "__doc__", None):
-            parts += [module.__doc__.strip(), ""]
-        parts += [module.markdown(rows), ""]
-        if hasattr(module, "plot"):
-            image = DOCS / f"bench-{name}.png"
-            module.plot(rows, image)
-            parts += [f"![{title}]({image.name})", ""]
-    parts.append(f"_Total benchmark time: {time.time() - started:.0f} s._")
-    DOCS.mkdir(exist_ok=True)
-    target = DOCS / "benchmarks.md"
-    if target.exists():
-        # The measured sections in place in the existing page; the others, and the sections
-        # measured by hand (before/after runs, profiles), kept as they were.
-        measured = only or {name for name, _ in SECTIONS}
-        text = _splice(target.read_text(), "\n".join(parts) + "\n", measured, not only)
-        target.write_text(text)
-        print(f"updated {sorted(measured)} in {target}")
-        return 0
-    target.write_text("\n".join(parts) + "\n")
-    print(f"wrote {DOCS / 'benchmarks.md'}")
-    return 0
+    if failed:
+        lines.append(
+            "- Not measured in this run (failed; their sections keep earlier results): "
+            + ", ".join(f"{name} ({why})" for name, why in failed.items())
+        )
+    return "\n".join(lines) + "\n"
+
+
+def _write(
+    target: Path,
+    original: str,
+    fresh: dict[str, str],
+    failed: dict[str, str],
+    found: list[regressions.Regression],
+    full: bool,
+) -> None:
+    """The page: `original` with the `fresh` sections in place and the regressions (of the
+    sections measured) in its head; with `full` (every section run), the head renewed."""
+    titles = dict(SECTIONS)
+    text = _head(failed) + "".join("\n" + fresh[name] for name in fresh)
+    if original:
+        text = _splice(original, text, set(fresh), full)
+    head, rest = text.split("\n## ", 1) if "\n## " in text else (text, None)
+    head = regressions.head_with(head, {titles[name] for name in fresh}, found)
+    text = head.rstrip() + "\n" + ("\n## " + rest if rest is not None else "")
+    target.parent.mkdir(parents=True, exist_ok=True)
+    target.write_text(text)
 
 
 def _sections(text: str) -> tuple[str, dict[str, str]]:
