@@ -33,6 +33,9 @@ class Diagnostic:
     line: int
     col: int
     source_line: str = ""
+    # Found by a parser: an error there comes before the checker's findings, which may only
+    # follow from it (a layer whose block was not closed is "unknown" further up).
+    syntax: bool = False
 
     @property
     def is_error(self) -> bool:
@@ -45,9 +48,12 @@ class Diagnostic:
         caret = " " * max(0, min(self.col - 1, len(text))) + "^"
         return f"{head}\n    {text}\n    {caret}"
 
-    def sort_key(self) -> tuple[str, int, int, int, str]:
+    def sort_key(self) -> tuple[str, bool, int, int, int, str]:
+        """By file; its syntax errors first (the real ones: what the checker finds after them
+        may follow from them), then by position."""
         rank = list(Severity).index(self.severity)
-        return (self.path, self.line, self.col, rank, self.message)
+        follows = not (self.syntax and self.is_error)
+        return (self.path, follows, self.line, self.col, rank, self.message)
 
 
 def printable(source_line: str) -> str:
@@ -126,10 +132,11 @@ def source_lines(source: str) -> list[str]:
 class DiagnosticSink:
     """Collects diagnostics for one source text, quoting lines as it goes."""
 
-    def __init__(self, path: str, source: str) -> None:
+    def __init__(self, path: str, source: str, *, syntax: bool = False) -> None:
         self.path = path
         self.lines = source_lines(source)
         self.items: list[Diagnostic] = []
+        self.syntax = syntax  # a parser's sink (see `Diagnostic.syntax`)
 
     def quote(self, line: int) -> str:
         return self.lines[line - 1] if 1 <= line <= len(self.lines) else ""
@@ -138,7 +145,9 @@ class DiagnosticSink:
         # Python reports an unexpected end of file on the line after the last one.
         line = max(1, min(line, len(self.lines) or 1))
         col = max(1, col)
-        self.items.append(Diagnostic(severity, message, self.path, line, col, self.quote(line)))
+        self.items.append(
+            Diagnostic(severity, message, self.path, line, col, self.quote(line), self.syntax)
+        )
 
     def error(self, message: str, line: int, col: int) -> None:
         self.add(Severity.ERROR, message, line, col)

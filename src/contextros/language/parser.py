@@ -43,6 +43,7 @@ from contextros.language.syntax import (
     SourceLine,
     char_of_byte,
 )
+from contextros.language.words import found_text
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
 _Where = Callable[[int, int], tuple[int, int]]
@@ -166,7 +167,7 @@ class _Parser:
     def __init__(self, source: str, path: str) -> None:
         self.source = source
         self.path = path
-        self.sink = DiagnosticSink(path, source)
+        self.sink = DiagnosticSink(path, source, syntax=True)
         self.lines = source_lines(source)
 
     # -- file level ---------------------------------------------------------------------
@@ -282,7 +283,8 @@ class _Parser:
         if word is None:
             found = self.lines[start].split()[0]
             self.sink.error(
-                f"expected a declaration ('layer', 'base' or 'group'), found {found!r}; "
+                "expected a declaration ('layer', 'base' or 'group'), found "
+                f"{found_text(found, ('layer', 'group', 'base'))}; "
                 "Python code belongs in the header, above the first declaration",
                 start + 1,
                 1,
@@ -327,7 +329,8 @@ class _Parser:
             return
         found = first.text if first is not None else self.lines[start].strip()
         self.sink.error(
-            f"expected a declaration ('layer', 'base' or 'group'), found {found!r}; "
+            "expected a declaration ('layer', 'base' or 'group'), found "
+            f"{found_text(found, ('layer', 'group', 'base'))}; "
             "Python code belongs in the header, above the first declaration",
             start + 1,
             1,

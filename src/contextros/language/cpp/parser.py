@@ -36,6 +36,7 @@ from contextros.language.syntax import (
     Ref,
     Signature,
 )
+from contextros.language.words import found_text, misspelt
 
 LAYER_WORDS = ("Layer", "layer")
 RELATIONS = ("excludes", "requires", "after")
@@ -252,7 +253,7 @@ class _Parser:
         self.text = SourceText(source)
         self.source = source
         self.path = path
-        self.sink = DiagnosticSink(path, source)
+        self.sink = DiagnosticSink(path, source, syntax=True)
 
     def error(self, message: str, offset: int) -> None:
         line, col = self.text.position(offset)
@@ -429,10 +430,13 @@ class _Parser:
         if is_line_declaration(self.source, start):
             return True
         word, end = self._word(start)
-        if word not in DECLARATION_WORDS or end == start:
+        if end == start:
+            return False
+        misspelt = word not in DECLARATION_WORDS and _misspelt(word)
+        if word not in DECLARATION_WORDS and not misspelt:
             return False
         after = self._skip_blanks(end)
-        if word == "base":
+        if word == "base" or misspelt == "base":
             return after < len(self.source) and self.source[after] == "["
         if after == end:
             return False
@@ -441,8 +445,17 @@ class _Parser:
             return False
         rest = self._skip_blanks(name_end)
         following = self.source[rest] if rest < len(self.source) else ""
+        if misspelt:  # `grou g: A, B`, `Layr A [`: no C++ declaration reads so
+            return following in (":", "[")
         if word == "group":
-            return following == ":"
+            # `group g: A, B;`, and with its ':' lost (`group g A, B;`, `group g; A, B;`)
+            line_end = self.source.find("\n", rest)
+            more = self.source[rest + 1 : None if line_end < 0 else line_end].split("//")[0]
+            return (
+                following == ":"
+                or identifier_char(following)
+                or (following == ";" and bool(more.strip()))
+            )
         # `Layer x;`, `Layer x = ...`, `Layer f(...)` are C++ in the header; a layer line
         # goes on with a relation (or a misspelt one), '[' or nothing.
         return following in ("[", "\n", "\r", "") or identifier_char(following)
@@ -485,6 +498,8 @@ class _Parser:
                 elif kind in ("class_specifier", "struct_specifier"):
                     self._class(child, scope, names, result)
                 elif kind in ("declaration", "type_definition", "field_declaration"):
+                    if child.has_error:
+                        continue  # C++'s compiler reports it; what it declares is unknown
                     specifier = child.child_by_field_name("type")
                     if specifier is not None and specifier.type in (
                         "class_specifier",
@@ -535,6 +550,9 @@ class _Parser:
         # counts when its closing brace is really there.)
         if body is None or body.children[-1].type != "}" or body.children[-1].is_missing:
             return
+        # A body with a syntax error may misplace its members' parts: their declarations are
+        # not compared (the C++ compiler reports the error).
+        broken = body.has_error
         methods: dict[str, list[tuple[tuple[object, ...], str, int]]] = {}
         static_methods: set[str] = set()
         has_macro = False
@@ -570,7 +588,7 @@ class _Parser:
                 close,
                 has_macro,
                 frozenset(methods),
-                {m: d[0] for m, d in methods.items() if len(d) == 1},
+                {m: d[0] for m, d in methods.items() if len(d) == 1 and not broken},
                 frozenset(static_methods),
                 overloads,
             )
@@ -589,9 +607,10 @@ class _Parser:
             elif token.text == "base":
                 i = self._base(found, i, result)
             else:
+                found_word = found_text(token.text, ("Layer", "group", "base"))
                 self.error(
-                    f"expected a declaration ('Layer', 'base' or 'group'), found "
-                    f"{token.text!r}; C++ code belongs in the header part, above the first "
+                    f"expected a declaration ('Layer', 'base' or 'group'), found {found_word}"
+                    "; C++ code belongs in the header part, above the first "
                     "declaration, or in a layer's [ ... ] block",
                     token.start,
                 )
@@ -651,12 +670,14 @@ class _Parser:
             got = f", found {found[j].text!r}" if j < len(found) else ""
             self.error(f"expected 'excludes', 'requires', 'after' or '['{got}", where)
             return self._recover(found, j)
-        close = self._block_end(found, j)
+        result.layers.append(layer)  # declared, even if its block is broken
+        close, paired = self._block_end(found, j)
         if close is None:
-            return len(found)
-        result.layers.append(layer)
-        items = self._block_items(found[j : close + 1], layer)
-        layer.functions.extend(self._functions(found[j], found[close], layer.name, result, items))
+            return self._recover(found, j + 1)
+        if paired:
+            items = self._block_items(found[j : close + 1], layer)
+            functions = self._functions(found[j], found[close], layer.name, result, items)
+            layer.functions.extend(functions)
         return close + 1
 
     def _base(self, found: list[Token], i: int, result: CppLayerFile) -> int:
@@ -666,13 +687,14 @@ class _Parser:
                 "expected '[' after 'base'", found[j].start if j < len(found) else found[i].end
             )
             return self._recover(found, j)
-        close = self._block_end(found, j)
+        close, paired = self._block_end(found, j)
         if close is None:
-            return len(found)
+            return self._recover(found, j + 1)
         block = BaseBlock(self.at(found[i].start))
         result.bases.append(block)
-        items = self._block_items(found[j : close + 1], None)
-        block.functions.extend(self._functions(found[j], found[close], None, result, items))
+        if paired:
+            items = self._block_items(found[j : close + 1], None)
+            block.functions.extend(self._functions(found[j], found[close], None, result, items))
         return close + 1
 
     def _group(self, found: list[Token], i: int, result: CppLayerFile) -> int:
@@ -697,32 +719,88 @@ class _Parser:
             return self._recover(found, j)
         return j
 
-    def _block_end(self, found: list[Token], open_index: int) -> int | None:
-        """The index of the `]` closing the block opened at `open_index` (None: reported)."""
-        square = 0
-        braces: list[Token] = []
-        for k in range(open_index, len(found)):
-            text = found[k].text
-            if text in ("[", "[["):
-                square += len(text)
-            elif text in ("]", "]]"):
-                square -= len(text)
-                if square <= 0:
-                    if braces:
-                        self.error("'{' is not closed before the layer's ']'", braces[-1].start)
-                        return None
-                    if square < 0:
-                        self.error("']]' closes the block and an inner '[' at once", found[k].start)
-                        return None
-                    return k
-            elif text == "{":
-                braces.append(found[k])
-            elif text == "}" and braces:
-                braces.pop()
+    def _block_end(self, found: list[Token], open_index: int) -> tuple[int | None, bool]:
+        """The index of the `]` closing the block opened at `open_index`, and whether the
+        brackets inside it pair up (an error was reported where they do not). None: the block
+        is not closed (reported at the declaration word that comes instead, or at its `[`)."""
+        opened: list[Token] = []  # '(', '[' and '{' inside the block, innermost last
+        paired = True
+        for k in range(open_index + 1, len(found)):
+            token = found[k]
+            text = token.text
+            column_one = self.text.position(token.start)[1] == 1
+            if column_one and text in DECLARATION_WORDS and not opened:
+                self.error(
+                    f"expected ']' before {text!r}: the block opened at "
+                    f"{self._where(found[open_index])} is not closed",
+                    token.start,
+                )
+                return None, False
+            if text in ("(", "[", "{", "[["):
+                opened.append(token)
+                continue
+            if text not in (")", "]", "}", "]]"):
+                continue
+            if text in ("]", "]]") and (not opened or (column_one and text == "]")):
+                if opened and paired:
+                    self._unclosed(opened[-1])
+                if text == "]]" and not opened:
+                    self.error("']]' closes the block and an inner '[' at once", token.start)
+                    return None, False
+                return k, paired and not opened
+            if not opened:
+                # A '}' whose '{' is missing: C++'s grammar finds where the '{' belonged.
+                if paired and text != "}":
+                    self.error(f"unmatched {text!r}: nothing open here to close", token.start)
+                    paired = False
+                continue
+            top = opened[-1]
+            if _CLOSER[top.text] != text:
+                if paired and _STRENGTH[text] > _STRENGTH[_CLOSER[top.text]]:
+                    self._unclosed(top)  # `f(x }`: the '(' lost its ')'
+                elif paired:
+                    self.error(
+                        f"{text!r} does not close the {top.text!r} at {self._where(top)}: "
+                        f"expected {_CLOSER[top.text]!r}",
+                        token.start,
+                    )
+                paired = False
+            elif paired and text == "}" and self._dedented(top, token, opened):
+                self._unclosed(top)
+                paired = False
+            opened.pop()
         self.error(
             "this block is not closed: expected ']' after its functions", found[open_index].start
         )
-        return None
+        return None, False
+
+    def _where(self, token: Token) -> str:
+        line, col = self.text.position(token.start)
+        return f"{line}:{col}"
+
+    def _unclosed(self, token: Token) -> None:
+        self.error(f"{token.text!r} is not closed: expected {_CLOSER[token.text]!r}", token.start)
+
+    def _indent(self, offset: int) -> int | None:
+        """The indentation of the line at `offset`, if the token there starts the line."""
+        line = self.text.position(offset)[0]
+        start = self.text.line_starts[line - 1]
+        blank = self.source[start:offset]
+        return len(blank) if not blank.strip() else None
+
+    def _line_indent(self, offset: int) -> int:
+        line = self.text.position(offset)[0]
+        start = self.text.line_starts[line - 1]
+        text = self.source[start:offset]
+        return len(text) - len(text.lstrip())
+
+    def _dedented(self, top: Token, close: Token, opened: list[Token]) -> bool:
+        """A '}' that starts its line at the indentation of an outer '{' line, not of the
+        line of the '{' it pairs with: that one lost its own '}' (formatted code)."""
+        indent = self._indent(close.start)
+        if indent is None or indent == self._line_indent(top.start):
+            return False
+        return any(o.text == "{" and self._line_indent(o.start) == indent for o in opened[:-1])
 
     # -- functions ------------------------------------------------------------------------
 
@@ -754,6 +832,12 @@ class _Parser:
                 continue
             if text == "on" and item_start and k + 1 < end and block[k + 1].text.isidentifier():
                 k = self._hook(block, k, end, layer, where, items)
+                continue
+            if text in ("activate", "deactivate") and item_start and block[k + 1].text == "{":
+                self.error(
+                    f"expected 'on' before {text!r}: a hook is 'on {text} {{ ... }}'", token.start
+                )
+                k += 1
                 continue
             if text == "when" and declarator and k + 1 < end and block[k + 1].text == "(":
                 k = self._guard(block, k, end, items)
@@ -913,7 +997,7 @@ class _Parser:
                 continue
             if child.type != "function_definition":
                 what = "a template" if child.type == "template_declaration" else None
-                problem = first_problem(child) if child.type != "ERROR" else child
+                problem = first_problem(child) if child.type != "ERROR" else _stray(child)
                 if what:
                     self.error(
                         f"{what} cannot be layered (its dispatch would need one layered "
@@ -959,6 +1043,9 @@ class _Parser:
         if node.is_missing:
             self.error(f"C++ syntax error: missing {node.type!r}", start)
             return
+        stray = _stray(node, in_body=False) if node.type == "ERROR" else node
+        if stray is not node:
+            start, end = self.text.span(stray)
         text = self.source[start:end].split("\n")[0].strip()
         self.error(f"C++ syntax error: unexpected {text[:40]!r}", start)
 
@@ -1149,6 +1236,36 @@ class _Parser:
 
 # Said only where a member function is declared in its class, not where it is defined.
 _SPECIFIERS = frozenset({"virtual", "static", "inline", "explicit", "friend", "constexpr"})
+
+
+_CLOSER = {"(": ")", "[": "]", "{": "}", "[[": "]]"}
+# A closing bracket of more strength than the open one's ends it too (a '}' ends a '(').
+_STRENGTH = {")": 0, "]": 1, "]]": 1, "}": 2}
+
+
+def _misspelt(word: str) -> str:
+    return misspelt(word, ("Layer", "group", "base"))
+
+
+# Tokens that may stand anywhere in broken code: keywords, brackets, ';'.
+_NOT_STRAY = frozenset({"{", "}", ";", "(", ")", "[", "]"})
+
+
+def _stray(error: tree_sitter.Node, *, in_body: bool = True) -> tree_sitter.Node:
+    """In code tree-sitter could not read, the first punctuation that fits nowhere
+    (`return x:`; in a definition: in its body), else the whole of it."""
+    inside = not in_body
+    for child in error.children:
+        if child.type == "{":
+            inside = True
+        elif (
+            inside
+            and not child.is_named
+            and not child.type.isidentifier()
+            and (child.type not in _NOT_STRAY)
+        ):
+            return child
+    return error
 
 
 def _function_declarator(node: tree_sitter.Node | None) -> tree_sitter.Node | None:

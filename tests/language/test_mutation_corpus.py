@@ -1,0 +1,253 @@
+"""The mutation corpus: every layer file of examples/ and of the fixtures, broken one token at
+a time, in both flavours. Each bracket, brace, parenthesis, colon, semicolon and keyword is
+deleted, and replaced by a wrong one; the first diagnostic must then be an error at the
+mutation (or at the token after it), naming what is missing or what was found instead. A
+follow-on (an 'unknown layer' after a block was not closed) never comes first.
+
+`make test` checks a deterministic sample of each file's mutations; `make fuzz` all of them
+(CONTEXTROS_FUZZ_EXAMPLES, as the fuzzers).
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from contextros.language import check_source
+
+ROOT = Path(__file__).resolve().parents[2]
+CORPUS = sorted(
+    [*ROOT.glob("examples/**/*.layers"), *ROOT.glob("tests/language/fixtures/**/*.layers")]
+)
+# `make test` checks this many mutations of each file (sampled, the same ones every run);
+# `make fuzz` sets CONTEXTROS_FUZZ_EXAMPLES in the thousands: every mutation.
+SAMPLE = int(os.environ.get("CONTEXTROS_FUZZ_EXAMPLES", "80"))
+
+# What is mutated: punctuation of both languages and the layer language's own keywords
+# (C++'s and Python's keywords inside a function are the compilers' business).
+KEYWORDS = (
+    "Layer",
+    "layer",
+    "base",
+    "group",
+    "excludes",
+    "requires",
+    "after",
+    "def",
+    "return",
+    "on",
+    "when",
+    "rule",
+    "topic",
+    "parameter",
+    "lifecycle",
+)
+PUNCTUATION = ("[", "]", "{", "}", "(", ")", ":", ";")
+# A wrong token in place of each (a misspelt keyword, the other bracket).
+REPLACEMENTS = {
+    "[": "(",
+    "]": ")",
+    "{": "(",
+    "}": ")",
+    "(": "[",
+    ")": "]",
+    ":": ";",
+    ";": ":",
+}
+OPENING = ("[", "{", "(")
+CLOSING = {"]": "[", "}": "{", ")": "("}
+_CPP_TOKENS = re.compile(
+    r'//[^\n]*|/\*.*?\*/|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|::|[A-Za-z_]\w*|\S',
+    re.DOTALL,
+)
+_PY_TOKENS = re.compile(
+    r'#[^\n]*|"""(?:.|\n)*?"""|"(?:\\.|[^"\\\n])*"|\'(?:\\.|[^\'\\\n])*\'|[A-Za-z_]\w*|\S'
+)
+
+
+@dataclass(frozen=True)
+class Mutation:
+    """One token of a layer file deleted or replaced."""
+
+    path: str
+    offset: int
+    original: str
+    replacement: str  # '' for a deletion
+    next_offset: int  # of the token after the mutated one (the end of the file if none)
+    partner: int | None  # of the bracket the mutated one pairs with
+
+    @property
+    def kind(self) -> str:
+        how = f"replaced by {self.replacement!r}" if self.replacement else "deleted"
+        return f"{self.original!r} {how}"
+
+    def apply(self, source: str) -> str:
+        end = self.offset + len(self.original)
+        return source[: self.offset] + self.replacement + source[end:]
+
+
+def _is_cpp(path: Path) -> bool:
+    return path.name.endswith(".cpp.layers")
+
+
+def mutations(path: Path, source: str) -> list[Mutation]:
+    """Every mutation of one file, in source order."""
+    pattern = _CPP_TOKENS if _is_cpp(path) else _PY_TOKENS
+    found = list(pattern.finditer(source))
+    partners: dict[int, int] = {}
+    opened: list[tuple[str, int]] = []
+    for match in found:
+        if match.group() in OPENING:
+            opened.append((match.group(), match.start()))
+        elif match.group() in CLOSING and opened and opened[-1][0] == CLOSING[match.group()]:
+            partners[match.start()] = opened[-1][1]
+            partners[opened.pop()[1]] = match.start()
+    result: list[Mutation] = []
+    for index, match in enumerate(found):
+        text = match.group()
+        if text not in PUNCTUATION and text not in KEYWORDS:
+            continue
+        after = [m for m in found[index + 1 :] if not m.group().startswith(("//", "/*", "#"))]
+        following = after[0].start() if after else len(source)
+        wrong = REPLACEMENTS.get(text) or (text[:-1] if len(text) > 2 else text + "x")
+        for replacement in ("", wrong):
+            partner = partners.get(match.start())
+            result.append(Mutation(str(path), match.start(), text, replacement, following, partner))
+    return result
+
+
+def line_col(source: str, offset: int) -> tuple[int, int]:
+    before = source[:offset]
+    return before.count("\n") + 1, offset - (before.rfind("\n") + 1) + 1
+
+
+def sampled(items: list[Mutation], count: int, seed: str) -> list[Mutation]:
+    if count >= len(items):
+        return items
+    return sorted(random.Random(seed).sample(items, count), key=lambda m: m.offset)
+
+
+def problem(path: Path, source: str, mutation: Mutation) -> str | None:
+    """What is wrong with the diagnostics of one mutation ('' if nothing, None if the
+    mutated file is still correct)."""
+    mutated = mutation.apply(source)
+    name = path.name
+    diagnostics = check_source(mutated, name)
+    errors = [d for d in diagnostics if d.is_error]
+    if not errors:
+        return None
+    first = diagnostics[0]
+    at = line_col(source, mutation.offset)
+    # The token after the mutation, in the mutated text.
+    shift = len(mutation.replacement) - len(mutation.original)
+    upto = line_col(mutated, mutation.next_offset + shift)
+    shown = f"{mutation.kind} at {at[0]}:{at[1]}: first {first.line}:{first.col} {first.message}"
+    if not first.is_error:
+        return f"{shown}: not an error"
+    where = (first.line, first.col)
+    if (at[0], 1) <= where <= (max(at, upto)[0], len(mutated)):
+        return ""  # from the mutation's line (a compiler may start there) to the next token's
+    if mutation.partner is not None:
+        partner = mutation.partner + (shift if mutation.partner > mutation.offset else 0)
+        if where == line_col(mutated, partner):
+            return ""  # at the bracket the mutated one paired with ('(' was never closed)
+    return f"{shown}: not at the mutation (or the token after it, {upto[0]}:{upto[1]})"
+
+
+# Where no parser can point at the mutation: `if (c)  {` lost its '{', and the '}' meant for
+# it closes the function; the next statement is then outside any function (g++ reports it
+# there too).
+KNOWN = {("localization.cpp.layers", 40, 21, "")}
+
+
+@pytest.mark.parametrize("path", CORPUS, ids=lambda p: str(p.relative_to(ROOT)))
+def test_the_first_diagnostic_is_the_mutation(path: Path) -> None:
+    source = path.read_text()
+    every = mutations(path, source)
+    assert len(every) > 10  # the corpus file has punctuation and keywords
+    failures = []
+    for mutation in sampled(every, SAMPLE, path.name):
+        if (path.name, *line_col(source, mutation.offset), mutation.replacement) in KNOWN:
+            continue
+        found = problem(path, source, mutation)
+        if found:
+            failures.append(found)
+    assert not failures, "\n".join(failures)
+
+
+ROBOT = (ROOT / "tests/language/fixtures/cpp/robot.cpp.layers").read_text()
+CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
+
+
+@pytest.mark.parametrize(
+    ("name", "source", "old", "new", "first"),
+    [
+        (
+            "x.cpp.layers",
+            ROBOT,
+            "]\n\nLayer Indoor",
+            "\n\nLayer Indoor",
+            "21:1: expected ']' before 'Layer': the block opened at 15:6 is not closed",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            'std::string Robot::clean(const std::string& area) {\n  return "wipe',
+            'std::string Robot::clean(const std::string& area)\n  return "wipe',
+            "26:50: C++ syntax error: missing ';'",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            "Layer Indoor [",
+            "Layer Indoor",
+            "22:1: expected 'excludes', 'requires', 'after' or '[', found 'double'",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            "Layer Indoor [",
+            "Layr Indoor [",
+            "21:1: expected a declaration ('Layer', 'base' or 'group'), found 'Layr' "
+            "(misspelt 'Layer'?)",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            "proceed(factor) * 0.5;",
+            "proceed(factor) * 0.5",
+            "22:59: C++ syntax error: missing ';'",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            "group place:",
+            "grou place:",
+            "13:1: expected a declaration ('Layer', 'base' or 'group'), found 'grou' "
+            "(misspelt 'group'?)",
+        ),
+        (
+            "x.layers",
+            CLEANER,
+            "layer Indoor:",
+            "layr Indoor:",
+            "21:1: expected a declaration ('layer', 'base' or 'group'), found 'layr' "
+            "(misspelt 'layer'?)",
+        ),
+    ],
+    ids=["missing ]", "unclosed {", "missing [", "Layr", "missing ;", "grou", "layr"],
+)
+def test_the_issues_cases_report_the_real_error_first(
+    name: str, source: str, old: str, new: str, first: str
+) -> None:
+    """Issue 25's examples: each gave a follow-on ('unknown layer') first."""
+    assert old in source
+    diagnostics = check_source(source.replace(old, new, 1), name)
+    assert f"{diagnostics[0].line}:{diagnostics[0].col}: {diagnostics[0].message}".startswith(
+        first
+    ), diagnostics[0].render()
