@@ -80,6 +80,8 @@ def main() -> None:
     parser.add_argument("--manager-timeout", type=float, default=3.0)
     parser.add_argument("--stubborn", help="a layer whose on_deactivate hook always raises")
     parser.add_argument("--also", help="a second context node in this process (it is hosted)")
+    parser.add_argument("--veto", help="an application veto: refuse every proposal with this")
+    parser.add_argument("--veto-sleep", type=float, default=0.0, help="each veto call takes this")
     args = parser.parse_args(remove_ros_args(sys.argv)[1:])
     if args.stubborn:
         old = LAYERS[args.stubborn]
@@ -111,6 +113,14 @@ def main() -> None:
     node.context_participant.add_manager_listener(
         lambda lost: emit("manager-lost" if lost else "manager-found")
     )
+    if args.veto or args.veto_sleep:
+
+        def veto(proposal: LayerState) -> str | None:
+            emit("veto-called", epoch=proposal.epoch, active=list(proposal.active))
+            time.sleep(args.veto_sleep)
+            return args.veto
+
+        node.context_participant.add_veto(veto)
     threading.Thread(target=read_commands, daemon=True).start()
     emit("ready", node=node.get_fully_qualified_name(), mode=cleaner.mode())
     nodes = [node]

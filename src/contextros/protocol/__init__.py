@@ -42,7 +42,13 @@ from contextros.protocol.relations import (
     merge_declarations,
     relation_violations,
 )
-from contextros.protocol.state import INITIAL_STATE, MAX_EPOCH, LayerState
+from contextros.protocol.state import (
+    INITIAL_STATE,
+    MAX_EPOCH,
+    KnownParticipant,
+    LayerState,
+    ManagerMemory,
+)
 
 __all__ = [
     "DEFAULT_HEARTBEAT_PERIOD",
@@ -54,12 +60,14 @@ __all__ = [
     "ActivationFailed",
     "ActivationResult",
     "ApplyState",
+    "KnownParticipant",
     "LayerDeclaration",
     "LayerState",
     "ManagerAction",
     "ManagerError",
     "ManagerFound",
     "ManagerLost",
+    "ManagerMemory",
     "ManagerProtocol",
     "ManagerSettings",
     "ParticipantAction",

@@ -76,3 +76,63 @@ class LayerState:
 
 
 INITIAL_STATE = LayerState(epoch=0, active=(), requester="", reason="initial")
+
+
+@dataclass(frozen=True)
+class KnownParticipant:
+    """A participant the manager knew live: after a restart it is awaited, not forgotten."""
+
+    node: str
+    incarnation: str
+    hosted: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class ManagerMemory:
+    """What a manager with a state file keeps across a crash: its last published state,
+    the highest epoch it ever proposed (an atomic vote's epoch is never reused, even when
+    the crash came before the commit) and the participants it knew live. The adapter
+    writes it before anything that changes it goes on the wire (docs/protocol.md)."""
+
+    state: LayerState
+    proposed_epoch: int = 0
+    participants: tuple[KnownParticipant, ...] = ()
+
+    def to_json(self, wall_time: float | None = None) -> str:
+        data = json.loads(self.state.to_json(wall_time))
+        data["proposed_epoch"] = self.proposed_epoch
+        data["participants"] = [
+            {"node": p.node, "incarnation": p.incarnation, "hosted": list(p.hosted)}
+            for p in self.participants
+        ]
+        return json.dumps(data, indent=2)
+
+    @classmethod
+    def from_json(cls, text: str, source: str = "<state>") -> ManagerMemory:
+        """Parse a state file (one written before `proposed_epoch` and `participants`
+        existed reads as none of either); a damaged file is an error."""
+        state = LayerState.from_json(text, source)
+        try:
+            data = json.loads(text)
+            proposed = data.get("proposed_epoch", 0)
+            if not isinstance(proposed, int) or isinstance(proposed, bool):
+                raise ValueError(f"proposed_epoch must be an integer, got {proposed!r}")
+            if not 0 <= proposed <= MAX_EPOCH:
+                raise ValueError(f"proposed_epoch {proposed} is out of range")
+            participants = []
+            for entry in data.get("participants", []):
+                node, incarnation = entry["node"], entry["incarnation"]
+                hosted = entry.get("hosted", [])
+                if not (isinstance(node, str) and node.startswith("/")):
+                    raise ValueError(f"participant node must be a node name, got {node!r}")
+                if not isinstance(incarnation, str) or not isinstance(hosted, list):
+                    raise ValueError(f"participant {node}: bad incarnation or hosted nodes")
+                if not all(isinstance(h, str) for h in hosted):
+                    raise ValueError(f"participant {node}: hosted nodes must be names")
+                participants.append(KnownParticipant(node, incarnation, tuple(hosted)))
+        except (ValueError, KeyError, TypeError) as error:
+            raise StateFileError(
+                f"{source}: not a ContextROS state file ({error}); "
+                "fix or delete it to start from the participants' state"
+            ) from error
+        return cls(state, proposed, tuple(participants))

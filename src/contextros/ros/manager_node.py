@@ -31,6 +31,7 @@ from contextros.protocol import (
     ActivationResult,
     LayerState,
     ManagerAction,
+    ManagerMemory,
     ManagerProtocol,
     ManagerSettings,
     ParticipantConflict,
@@ -80,25 +81,31 @@ RECONCILE_RETRY_MAX = 30.0
 
 # A tick this much later than due means the manager's process did not run meanwhile.
 STALL = 0.5
+# Actions after which the manager's memory may differ from its state file.
+_DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)
 
 
 class StateFile:
-    """The manager's memory across restarts: the last published state, written atomically
-    before it is published, so no epoch is ever handed out twice."""
+    """The manager's memory across restarts (`ManagerMemory`: the last published state,
+    the highest epoch proposed, the participants known), written atomically (a new file
+    renamed over the old one, fsynced) before what changed it goes on the wire, so no
+    epoch is ever handed out twice."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
 
-    def load(self) -> LayerState | None:
+    def load(self) -> ManagerMemory | None:
         if not self.path.exists():
             return None
-        return LayerState.from_json(self.path.read_text(encoding="utf-8"), str(self.path))
+        return ManagerMemory.from_json(self.path.read_text(encoding="utf-8"), str(self.path))
 
-    def save(self, state: LayerState) -> None:
+    def save(self, memory: ManagerMemory | LayerState) -> None:
+        if isinstance(memory, LayerState):
+            memory = ManagerMemory(memory)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         partial = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
         with partial.open("w", encoding="utf-8") as stream:
-            stream.write(state.to_json(wall_time=time.time()))
+            stream.write(memory.to_json(wall_time=time.time()))
             stream.flush()
             os.fsync(stream.fileno())
         partial.replace(self.path)
@@ -179,6 +186,7 @@ class LayerManagerNode(Node):
         self.state_file = StateFile(state_file) if state_file else None
         saved = self.state_file.load() if self.state_file else None
         self.protocol = ManagerProtocol(time.monotonic(), self.settings, saved)
+        self._saved_memory = saved
         self._next_request_id = 0
         # Log lines of the activation path wait until its reply is sent (or the next tick):
         # an rclpy log call costs ~0.3 ms, longer than a whole topic round trip.
@@ -214,7 +222,12 @@ class LayerManagerNode(Node):
         self._tick_period = tick_period
         self._last_tick = time.monotonic()
         self.create_timer(tick_period, self._on_tick)
-        origin = f"state file {state_file} (epoch {saved.epoch})" if saved else "participants"
+        origin = (
+            f"state file {state_file} (epoch {saved.state.epoch}, "
+            f"{len(saved.participants)} participant(s) known)"
+            if saved
+            else "participants"
+        )
         self.log.info(f"Layer manager {self.manager_id} recovering from {origin}")
         # Context rules run here, in the manager's executor: their commands enter the
         # protocol directly, in one order with the clients' (docs/rules.md says why).
@@ -531,21 +544,28 @@ class LayerManagerNode(Node):
 
     # -- actions ----------------------------------------------------------------------------
 
-    def _save(self, state: LayerState) -> None:
+    def _save(self) -> None:
+        """Write the manager's memory if it changed: before the actions that changed it
+        go out (a state, a proposal), and when a participant joins or is dropped."""
         assert self.state_file is not None
+        memory = self.protocol.memory()
+        if memory == self._saved_memory:
+            return
         try:
-            self.state_file.save(state)
+            self.state_file.save(memory)
+            self._saved_memory = memory
         except OSError as error:
             # Keep switching: the participants still carry the epoch across a restart.
             self.log.error(
-                f"state file {self.state_file.path} not written for epoch {state.epoch}: {error}"
+                f"state file {self.state_file.path} not written for epoch "
+                f"{memory.state.epoch}: {error}"
             )
 
     def _run(self, actions: list[ManagerAction]) -> None:
+        if self.state_file and any(isinstance(a, _DURABLE) for a in actions):
+            self._save()
         for action in actions:
             if isinstance(action, PublishState):
-                if self.state_file:
-                    self._save(action.state)
                 if self.rules is not None:  # a manual command's state drops refused firings
                     self.rules.published(action.state)
                 self._state_pub.publish(state_to_msg(action.state, time.time()))

@@ -19,6 +19,7 @@ from contextros.protocol.events import (
     ActivationCommand,
     ActivationResult,
     ManagerAction,
+    ParticipantReport,
     PublishHeartbeat,
     PublishState,
 )
@@ -30,7 +31,7 @@ from contextros.protocol.manager.records import (
 )
 from contextros.protocol.manager.settings import ManagerSettings
 from contextros.protocol.relations import DeclaredOrder, LayerDeclaration
-from contextros.protocol.state import INITIAL_STATE, LayerState
+from contextros.protocol.state import INITIAL_STATE, KnownParticipant, LayerState, ManagerMemory
 
 # The message of a command that leaves the configuration as it was (clients show it as is).
 NO_CHANGE = "no change"
@@ -43,10 +44,12 @@ class ManagerBase(ABC):
         self,
         now: float,
         settings: ManagerSettings | None = None,
-        saved_state: LayerState | None = None,
+        saved_state: LayerState | ManagerMemory | None = None,
     ) -> None:
         self.settings = settings or ManagerSettings()
-        self._state = saved_state or INITIAL_STATE
+        memory = saved_state if isinstance(saved_state, ManagerMemory) else None
+        saved = memory.state if memory is not None else saved_state
+        self._state: LayerState = saved or INITIAL_STATE
         self._participants: dict[Key, ParticipantRecord] = {}
         # Incarnations replaced by a newer one under the same name (a restart); hearing one
         # again means two live processes share the name.
@@ -74,7 +77,28 @@ class ManagerBase(ABC):
         self._transaction: Transaction | None = None
         self._behind_transaction: list[tuple[ActivationCommand, float]] = []
         self._epoch_floor = 0
-        self._memoryless = saved_state is None
+        self._memoryless = saved is None
+        if memory is not None:
+            self._epoch_floor = memory.proposed_epoch
+            # The nodes live before the restart are awaited as live ones (a synchronous
+            # answer waits for them) until they report or the liveness bound drops them.
+            for known in memory.participants:
+                report = ParticipantReport(known.node, known.incarnation, hosted=known.hosted)
+                key = (known.node, known.incarnation)
+                self._participants[key] = ParticipantRecord(report, now, presumed=True)
+                self._hosted[known.node] = known.hosted
+
+    def memory(self) -> ManagerMemory:
+        """What a state file keeps (see `ManagerMemory`): the adapter saves it whenever it
+        differs from the last saved one, before publishing a state or a proposal."""
+        return ManagerMemory(
+            state=self._state,
+            proposed_epoch=max(self._epoch_floor, self._state.epoch),
+            participants=tuple(
+                KnownParticipant(node, incarnation, record.report.hosted)
+                for (node, incarnation), record in sorted(self._participants.items())
+            ),
+        )
 
     @property
     def state(self) -> LayerState:

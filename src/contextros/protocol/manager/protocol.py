@@ -5,6 +5,7 @@ from __future__ import annotations
 from contextros.protocol.events import (
     ActivationCommand,
     ManagerAction,
+    ParticipantJoined,
     ParticipantReport,
     PublishProposal,
     Reply,
@@ -40,6 +41,8 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
             return actions
         if known is None:
             actions += self._arrival(key, now)
+        elif known.presumed:  # known from the state file, heard again
+            actions.append(ParticipantJoined(report.node))
         if known is None or known.report.layers != report.layers:
             self._declarations_cache = None
         self._participants[key] = ParticipantRecord(report, last_heard=now)

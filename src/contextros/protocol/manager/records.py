@@ -17,6 +17,8 @@ Key = tuple[str, str]
 class ParticipantRecord:
     report: ParticipantReport
     last_heard: float
+    # Known from the state file, not heard since this manager started.
+    presumed: bool = False
 
 
 @dataclass

@@ -21,8 +21,11 @@ class Recovery(ManagerBase):
     def _finish_recovery(self, now: float) -> list[ManagerAction]:
         self._recovering_until = None
         self._grace_until = now + self.settings.unknown_layer_grace
+        for record in self._participants.values():
+            if record.presumed:  # a full liveness bound from now on to report
+                record.last_heard = now
         newest = max(
-            (r.report for r in self._participants.values()),
+            (r.report for r in self._participants.values() if not r.presumed),
             key=lambda report: report.applied_epoch,
             default=None,
         )

@@ -211,7 +211,11 @@ class Registry(ManagerBase):
         ]
         actions: list[ManagerAction] = []
         for key, silent_for in sorted(silent):
-            actions += self._drop(key, f"silent for {silent_for:.1f} s", now)
+            record = self._participants[key]
+            why = f"silent for {silent_for:.1f} s"
+            if record.presumed:
+                why = f"not heard for {silent_for:.1f} s since the manager restarted"
+            actions += self._drop(key, why, now)
         return actions
 
     def _drop(self, key: Key, why: str, now: float) -> list[ManagerAction]:
