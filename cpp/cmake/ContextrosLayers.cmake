@@ -5,7 +5,9 @@
 # contextros::core. For `robot.cpp.layers` the generated files are robot.layers.cpp and
 # robot.layers.hpp in <build dir>/contextros_layers/; the include path gets that directory
 # (other sources `#include "robot.layers.hpp"`) and the layer file's own directory (the
-# header part's includes).
+# header part's includes). The layer file is named by its absolute path, so the generated
+# `#line` directives name it absolutely too: compiler messages open from the build directory,
+# where ninja and make run the compiler.
 #
 # CONTEXTROS_COMPILER: the command that runs the compiler (a list; default: the `contextros`
 # program of the active virtual environment, of CMAKE_PREFIX_PATH or of PATH).

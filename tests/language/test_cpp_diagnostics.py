@@ -325,3 +325,22 @@ def test_a_function_of_an_unseen_scope_must_be_a_method_where_cpp_can_tell(tmp_p
     first = next(line for line in build.stderr.splitlines() if "error" in line)
     assert first.startswith("hidden.cpp.layers:4:"), build.stderr
     assert "cannot layer nav::speed: not a non-static member function" in first
+
+
+def test_line_paths_open_from_where_the_build_runs_the_compiler(tmp_path: Path) -> None:
+    """As CMake does: the layer file named absolutely, the output in a subdirectory of the
+    build directory, the compiler run in the build directory (ninja). The path in the
+    compiler's message opens from there, at the layer file's line and column."""
+    layers = tmp_path / "src" / "x.cpp.layers"
+    layers.parent.mkdir()
+    layers.write_text("Layer A [\nint f() {\n  return undeclared_name;\n}\n]\n")
+    build = tmp_path / "build"
+    output = build / "sub" / "contextros_layers" / "x.layers.cpp"
+    output.parent.mkdir(parents=True)
+    assert main(["compile", str(layers), "-o", str(output)]) == 0
+    result = cxx("-std=c++17", "-c", output.relative_to(build), "-o", "x.o", cwd=build)
+    assert result.returncode != 0
+    first = next(line for line in result.stderr.splitlines() if ": error:" in line)
+    path, line, col, _ = first.split(":", 3)
+    assert (line, col) == ("3", "10"), first
+    assert (build / path).resolve() == layers.resolve(), first

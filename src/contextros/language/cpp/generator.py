@@ -8,8 +8,9 @@ by the runtime once per configuration (never an if/else over the active layers).
 and their relations are defined in the runtime at static initialisation.
 
 `#line` directives put every piece of user code at its place in the layer file, so compiler
-diagnostics and debuggers point there. Paths in the output are relative to the output's
-directory (or the bare file name), so the output does not depend on the working directory.
+diagnostics and debuggers point there. The layer file's path there is absolute when it was
+given so (CMake builds, whose compiler runs in the build directory), else relative to the
+output's directory (or the bare file name): never dependent on the working directory.
 """
 
 from __future__ import annotations
@@ -40,7 +41,12 @@ class CompiledCpp:
 
 
 def line_file(path: str, output: str | None) -> str:
-    """The name `#line` gives the layer file: relative to the output's directory."""
+    """The name `#line` gives the layer file. Compilers print it as it is, and a reader
+    opens it from where the compiler ran, which the generator cannot know: a layer file
+    named by its absolute path (as CMake names it) keeps it; a relative one is named
+    relative to the output's directory (where `g++ -c robot.layers.cpp` runs)."""
+    if os.path.isabs(path):
+        return path.replace(os.sep, "/")
     if output is None or output == "-" or path.startswith("<"):
         return os.path.basename(path)
     relative = os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(output)))
