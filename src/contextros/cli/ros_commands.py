@@ -254,7 +254,10 @@ def run_manager(args: argparse.Namespace) -> int:
     )
     rules = bindings = None
     if args.layer_files:
+        import dataclasses
+
         from contextros.bindings import Bindings
+        from contextros.language.declarations import declarations_from_files
         from contextros.language.diagnostics import LayerLanguageError
         from contextros.ros.message_types import installed_message_type
         from contextros.rules import RuleSet
@@ -263,6 +266,11 @@ def run_manager(args: argparse.Namespace) -> int:
             # What `contextros check` refuses, with the fields of the declared topics too.
             rules = RuleSet.from_files(args.layer_files, message_types=installed_message_type)
             bindings = Bindings.from_files(args.layer_files)
+            # Their layers' relations (`after` too) join the participants' declarations,
+            # as in `rules replay`.
+            settings = dataclasses.replace(
+                settings, layer_files=tuple(declarations_from_files(args.layer_files))
+            )
         except LayerError as error:
             listed = error.render() if isinstance(error, LayerLanguageError) else str(error)
             print(f"contextros manager: the layer files have errors:\n{listed}", file=sys.stderr)

@@ -48,6 +48,18 @@ def merge_declarations(
     return merged
 
 
+def with_layer_files(
+    implemented: Mapping[str, LayerDeclaration], layer_files: Iterable[LayerDeclaration]
+) -> dict[str, LayerDeclaration]:
+    """The declarations the manager composes and validates with: each layer the
+    participants implement (`implemented`, merged), with the relations the manager's layer
+    files declare for it added. The one place where the two meet, live and in a replay."""
+    extra = [d for d in layer_files if d.name in implemented]
+    if not extra:
+        return dict(implemented)
+    return merge_declarations([*implemented.values(), *extra])
+
+
 def relation_violations(
     active: Iterable[str], declarations: Mapping[str, LayerDeclaration]
 ) -> list[str]:

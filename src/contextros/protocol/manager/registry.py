@@ -22,7 +22,11 @@ from contextros.protocol.events import (
 )
 from contextros.protocol.manager.base import ManagerBase
 from contextros.protocol.manager.records import Key
-from contextros.protocol.relations import LayerDeclaration, merge_declarations
+from contextros.protocol.relations import (
+    LayerDeclaration,
+    merge_declarations,
+    with_layer_files,
+)
 from contextros.protocol.state import MAX_EPOCH, LayerState
 from contextros.protocol.validation import report_problems
 
@@ -69,11 +73,15 @@ class Registry(ManagerBase):
         return tuple(self._dropped)
 
     def declarations(self) -> dict[str, LayerDeclaration]:
-        """The union of every live participant's declarations, merged again only when a
-        participant comes, goes or declares something else. Do not modify the result."""
+        """The union of every live participant's declarations, with the relations of the
+        manager's layer files, merged again only when a participant comes, goes or declares
+        something else. Do not modify the result."""
         if self._declarations_cache is None:
-            self._declarations_cache = merge_declarations(
-                d for record in self._participants.values() for d in record.report.layers
+            self._declarations_cache = with_layer_files(
+                merge_declarations(
+                    d for record in self._participants.values() for d in record.report.layers
+                ),
+                self.settings.layer_files,
             )
         return self._declarations_cache
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from contextros.protocol.relations import LayerDeclaration
+
 
 @dataclass(frozen=True)
 class ManagerSettings:
@@ -42,3 +44,8 @@ class ManagerSettings:
     # others during recovery, an atomic vote or the unknown-layer grace): beyond it a new
     # command is refused at once, naming the limit. Anyone in the domain can send commands.
     max_waiting_commands: int = 1000
+    # The layers and relations the manager's own layer files declare (`--layers`): merged
+    # with the participants' declarations of the layers they implement (`with_layer_files`),
+    # so the manager and `rules replay` compose and validate from the same relations. A layer
+    # only these name is still unknown until a participant implements it.
+    layer_files: tuple[LayerDeclaration, ...] = ()
