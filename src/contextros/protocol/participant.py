@@ -156,8 +156,14 @@ class ParticipantProtocol:
             return actions
         return [*actions, ApplyState(state)]
 
+    def wants_vote(self, proposal: LayerState) -> bool:
+        """Whether `receive_proposal` would vote on `proposal` (it is new, valid and not
+        voted on yet): the adapter asks the application's vetoes once per proposal."""
+        voted = (self.vote_epoch, self.vote_manager_id) == (proposal.epoch, proposal.manager_id)
+        return not voted and proposal.epoch > self.newest_epoch and not state_problems(proposal)
+
     def receive_proposal(
-        self, proposal: LayerState, now: float, veto: str = ""
+        self, proposal: LayerState, now: float, veto: str = "", vote: bool = True
     ) -> list[ParticipantAction]:
         """An atomic activation asks whether this node can apply `proposal`: vote once.
 
@@ -165,13 +171,14 @@ class ParticipantProtocol:
         layers break none of the relations this node declares, and `veto` (the
         application's own answer, from the adapter) is empty. A vote changes nothing: the
         node switches only when the manager commits, with a state of that epoch.
+        `vote=False`: the proposal only shows the manager is alive (the adapter is still
+        asking the application's vetoes about it).
         """
         problems = state_problems(proposal)
         if problems:
             return [StateRejected(tuple(problems[:5]))]
         actions = self._heard_manager(proposal.manager_id, now)
-        voted = (self.vote_epoch, self.vote_manager_id) == (proposal.epoch, proposal.manager_id)
-        if proposal.epoch <= self.newest_epoch or voted:
+        if not vote or not self.wants_vote(proposal):
             return actions  # stale, or already voted (every report repeats the vote)
         reasons = [veto] if veto else []
         if self.in_critical_section:

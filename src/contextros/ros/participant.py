@@ -65,7 +65,8 @@ StateListener = Callable[[LayerState], object]
 # again, its newer state or else the state applied last replaces it.
 ManagerListener = Callable[[bool], object]
 # Asked about an atomic activation's proposed state: return why this node cannot apply it
-# ("" or None: it can). Runs in the executor; keep it short.
+# ("" or None: it can). Called once per proposal, in a thread of its own (the node's
+# executor, heartbeats included, goes on meanwhile); docs/protocol.md says what it may do.
 Veto = Callable[[LayerState], "str | None"]
 
 
@@ -142,6 +143,11 @@ class ContextParticipant:
         self._deferred: list[tuple[LayerState, SwitchResult]] = []
         self._deferred_lock = threading.Lock()
         self._settled = node.create_guard_condition(self._on_deferred_settled)
+        # Vetoes think in a worker thread; their answer comes back through this guard.
+        self._asking: tuple[int, str] | None = None  # the proposal whose vetoes think
+        self._answers: list[tuple[LayerState, str]] = []
+        self._answers_lock = threading.Lock()
+        self._answered = node.create_guard_condition(self._on_vetoes_answered)
         self._status_pub = node.create_publisher(ParticipantStatus, STATUS_TOPIC, STATUS_QOS)
         self._statuses = StatusEncoder()
         self._state_sub = node.create_subscription(
@@ -231,6 +237,7 @@ class ContextParticipant:
         self.node.destroy_subscription(self._proposal_sub)
         self.node.destroy_publisher(self._status_pub)
         self.node.destroy_guard_condition(self._settled)
+        self.node.destroy_guard_condition(self._answered)
 
     # -- executor callbacks -----------------------------------------------------------------
 
@@ -238,17 +245,48 @@ class ContextParticipant:
         self._run(self.protocol.receive_state(state_from_msg(msg), time.monotonic()))
 
     def _on_proposal(self, msg: Any) -> None:
+        """A proposal (repeated every 50 ms while the vote is open): without vetoes the node
+        votes at once; with vetoes they are asked once, in a worker thread, and the vote
+        follows their answer (`_on_vetoes_answered`)."""
         proposal = state_from_msg(msg)
+        now = time.monotonic()
+        self.protocol.critical_section_open = in_critical_section()
+        if not self._vetoes or not self.protocol.wants_vote(proposal):
+            self._run(self.protocol.receive_proposal(proposal, now))
+            return
+        self._run(self.protocol.receive_proposal(proposal, now, vote=False))
+        asked = (proposal.epoch, proposal.manager_id)
+        if self._asking == asked:
+            return  # its vetoes are still thinking
+        self._asking = asked
+        vetoes = list(self._vetoes)
+        threading.Thread(
+            target=self._ask_vetoes, args=(proposal, vetoes), name="contextros-veto", daemon=True
+        ).start()
+
+    def _ask_vetoes(self, proposal: LayerState, vetoes: list[Veto]) -> None:
         reasons = []
-        for veto in list(self._vetoes):
+        for veto in vetoes:
             try:
                 reason = veto(proposal)
             except Exception as failure:  # a veto that fails says no
                 reason = f"veto {getattr(veto, '__name__', veto)!r} failed: {failure!r}"
             if reason:
                 reasons.append(str(reason))
-        self.protocol.critical_section_open = in_critical_section()
-        self._run(self.protocol.receive_proposal(proposal, time.monotonic(), "; ".join(reasons)))
+        with self._answers_lock:
+            self._answers.append((proposal, "; ".join(reasons)))
+        with contextlib.suppress(Exception):  # the node was destroyed meanwhile
+            self._answered.trigger()
+
+    def _on_vetoes_answered(self) -> None:
+        with self._answers_lock:
+            answers, self._answers = self._answers, []
+        for proposal, veto in answers:
+            if (proposal.epoch, proposal.manager_id) != self._asking:
+                continue  # a newer proposal came meanwhile: this one is over
+            self._asking = None
+            self.protocol.critical_section_open = in_critical_section()
+            self._run(self.protocol.receive_proposal(proposal, time.monotonic(), veto))
 
     def _on_heartbeat(self) -> None:
         self._run(self.protocol.tick(time.monotonic()))

@@ -1,8 +1,9 @@
 """The atomic activation: every target votes on a proposal before anything changes.
 
-Any veto, a lost target or the timeout (at most `max_vote_time`) aborts with nothing
-changed anywhere; otherwise the proposed epoch is committed and then acknowledged as a
-synchronous activation. Other commands wait behind an open vote. A proposed epoch is
+Any veto (once every target voted, so the answer names each node that said no), a lost
+target or the timeout (at most `max_vote_time`) aborts with nothing changed anywhere;
+otherwise the proposed epoch is committed and then acknowledged as a synchronous
+activation. Other commands wait behind an open vote. A proposed epoch is
 used once: an aborted one is skipped, so a vote always names one proposal.
 """
 
@@ -80,17 +81,15 @@ class AtomicVotes(ManagerBase):
             return []
         epoch = transaction.proposal.epoch
         if voter is not None and transaction.counted:
-            vetoed = False
             if voter in transaction.targets:
                 report = self._participants[voter].report
                 voted = report.vote_epoch == epoch
                 if voted and report.vote_manager_id == self.settings.manager_id:
-                    vetoed = not report.vote_yes
-                    transaction.yes.add(voter)
+                    transaction.voted.add(voter)
                 else:
-                    transaction.yes.discard(voter)
-            undecided = len(transaction.yes) < len(transaction.targets)
-            if not vetoed and undecided and now < transaction.deadline:
+                    transaction.voted.discard(voter)
+            undecided = len(transaction.voted) < len(transaction.targets)
+            if undecided and now < transaction.deadline:
                 return []
         vetoes: dict[str, str] = {}
         missing: list[Key] = []
@@ -105,14 +104,13 @@ class AtomicVotes(ManagerBase):
             elif not record.report.vote_yes:
                 vetoes[key[0]] = f"vetoed: {record.report.vote_reason or 'no reason given'}"
         transaction.counted = True
-        transaction.yes = transaction.targets.difference(missing)
+        transaction.voted = transaction.targets.difference(missing)
+        if missing and now < transaction.deadline:
+            return []  # even after a no: the answer names every node that says no
+        limit = f"{transaction.timeout:g} s"
+        vetoes.update({key[0]: f"did not vote within {limit}" for key in missing})
         if vetoes:
             return self._abort(now, vetoes)
-        if missing and now >= transaction.deadline:
-            limit = f"{transaction.timeout:g} s"
-            return self._abort(now, {key[0]: f"did not vote within {limit}" for key in missing})
-        if missing:
-            return []
         return self._commit(now)
 
     def _commit(self, now: float) -> list[ManagerAction]:

@@ -48,7 +48,7 @@ class ManagerBase(ABC):
     ) -> None:
         self.settings = settings or ManagerSettings()
         memory = saved_state if isinstance(saved_state, ManagerMemory) else None
-        saved = memory.state if memory is not None else saved_state
+        saved = saved_state.state if isinstance(saved_state, ManagerMemory) else saved_state
         self._state: LayerState = saved or INITIAL_STATE
         self._participants: dict[Key, ParticipantRecord] = {}
         # Incarnations replaced by a newer one under the same name (a restart); hearing one

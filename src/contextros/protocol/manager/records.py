@@ -47,6 +47,6 @@ class Transaction:
     deadline: float
     targets: set[Key]
     timeout: float
-    # Kept by `_count_votes` between full counts: the targets whose vote is yes.
-    yes: set[Key] = field(default_factory=set)
+    # Kept by `_count_votes` between full counts: the targets that voted.
+    voted: set[Key] = field(default_factory=set)
     counted: bool = False
