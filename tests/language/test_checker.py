@@ -660,3 +660,29 @@ def test_binding_checks_in_the_cpp_flavour() -> None:
         (10, 14, "lifecycle node drv is bound to active by"),
     ]
     assert "declare 'Layer B after A'" in check_source(source, "t.cpp.layers")[0].message
+
+
+def test_a_misspelt_message_type_of_an_installed_package_is_an_error() -> None:
+    """What `contextros check` and the manager run (the installed interfaces' lookup raises
+    NoSuchMessageType for a type its package lacks): an error at the type, not a note."""
+    from contextros.rules.ruleset import FieldLookup, NoSuchMessageType
+
+    def installed(name: str) -> FieldLookup:
+        package, _, message = name.split("/")
+        if package != "sensor_msgs":
+            raise ValueError(f"message package {package!r} is not installed here")
+        raise NoSuchMessageType(f"sensor_msgs.msg has no message type {message!r}")
+
+    source = (
+        "topic battery: sensor_msgs/msg/BateryState\n"
+        "rule Low: Night while battery.percentage < 20\n"
+    )
+    found = check_source(source, "t.layers", message_types=installed)
+    assert [(d.severity.value, d.line, d.col) for d in found] == [("error", 1, 16)]
+    assert found[0].message == (
+        "the declared type of topic 'battery' does not exist: sensor_msgs.msg has no message "
+        "type 'BateryState'"
+    )
+    # A package not installed where `check` runs (a laptop): its fields wait for run time.
+    laptop = check_source(source.replace("sensor_msgs", "robot_msgs"), "t.layers", None, installed)
+    assert [(d.severity.value, d.line) for d in laptop] == [("note", 2)]

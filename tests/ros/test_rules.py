@@ -4,6 +4,8 @@ with the rule as their reason, manual commands beside them, field errors before 
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -16,6 +18,7 @@ from contextros.ros import LayerClient
 from tests.ros.processes import Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
 from tests.ros.test_cli import contextros
+from tests.ros.test_topic_declarations import heads
 
 RULES = """\
 # The robot's rules
@@ -196,6 +199,109 @@ def test_a_rule_with_a_syntax_error_stops_the_manager_at_once(tmp_path: Path) ->
     done = contextros("manager", "--rules", str(rules))
     assert done.returncode == 2
     assert f"{rules}:1:43: error: expected a field (TOPIC.FIELD) or a constant" in done.stderr
+
+
+# Files `contextros check` refuses, with how many errors each has.
+BROKEN = {
+    "fields.layers": (
+        "topic battery: sensor_msgs/msg/BatteryState\n"
+        "rule Low: Night while battery.percent < 20\n"
+        "rule Odd: Flight while battery.voltage == 'high'\n",
+        2,
+    ),
+    "syntax.layers": (
+        "rule A: Night while battery.percentage <\n"
+        "rule B: Night wile battery.percentage < 3\n"
+        "rule C: Night while battery.percentage < 20 for 3 h\n"
+        "rule D: Night while 3 < 4\n",
+        4,
+    ),
+    "misspelt.layers": (
+        "topic battery: sensor_msgs/msg/BateryState\n"
+        "rule Low: Night while battery.percentage < 20\n",
+        1,
+    ),
+    "layers.layers": (
+        "layer A requires Nope:\n    def f(): ...\nrule Low: A while battery.percentage < 20\n",
+        1,
+    ),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BROKEN))
+def test_the_manager_refuses_every_file_check_refuses_and_lists_every_error(
+    name: str, tmp_path: Path
+) -> None:
+    text, count = BROKEN[name]
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    checked = contextros("check", str(path))
+    errors = [line for line in heads(checked.stdout) if ": error: " in line]
+    assert (checked.returncode, len(errors)) == (1, count), checked.stdout
+    try:  # (a manager that accepts the file runs until stopped)
+        manager = subprocess.run(
+            [sys.executable, "-m", "contextros", "manager", "--layers", str(path)],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
+    except subprocess.TimeoutExpired as running:
+        pytest.fail(f"the manager ran with errors `check` reports: {errors}; {running.stdout!r}")
+    assert manager.returncode == 2, manager.stderr
+    assert [line for line in heads(manager.stderr) if ": error: " in line] == errors
+    assert "more error" not in manager.stderr, "every error listed, not a count"
+
+
+def test_a_misspelt_message_type_names_the_installed_one(tmp_path: Path) -> None:
+    path = tmp_path / "robot.layers"
+    path.write_text(BROKEN["misspelt.layers"][0], encoding="utf-8")
+    checked = contextros("check", str(path))
+    assert heads(checked.stdout) == [
+        f"{path}:1:16: error: the declared type of topic 'battery' does not exist: "
+        "sensor_msgs.msg has no message type 'BateryState' (did you mean BatteryState?)"
+    ]
+
+
+def _stamp(line: str) -> float:
+    """The time of a ROS log line: `[WARN] [1795746213.671906953] [node]: ...`."""
+    return float(line.split("] [", 2)[1])
+
+
+def test_a_topic_no_node_publishes_is_logged_once_after_the_grace_period(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    from contextros.ros.rules import UNPUBLISHED_GRACE
+
+    rules = tmp_path / "typo.layers"
+    rules.write_text(
+        "rule Low: Night while batery.percentage < 20\n"
+        "rule Place: Outdoor while gps.status.status >= 0\n",
+        encoding="utf-8",
+    )
+    sensors = Sensors(client, namespace="/typo")  # publishes /typo/battery and /typo/gps
+    manager = processes.manager("--rules", str(rules), "--ros-args", "-r", "__ns:=/typo")
+    try:
+        manager.wait_for(
+            lambda _: any("rules on /typo/batery wait" in line for line in manager.lines),
+            UNPUBLISHED_GRACE + 15,
+            "the log of the topic nobody publishes",
+        )
+        (line,) = [line for line in manager.lines if "rules on /typo/batery wait" in line]
+        assert line.startswith("[WARN]"), line
+        assert (
+            "rules on /typo/batery wait: no node has published it in the 5 s since the manager "
+            "started (rule Low reads it). Is its name misspelt, or its publisher not started? "
+            "Published topics with a close name: /typo/battery" in line
+        ), line
+        started = next(_stamp(line) for line in manager.lines if "recovering from" in line)
+        assert _stamp(line) - started >= UNPUBLISHED_GRACE - 0.1, "not before the grace period"
+        time.sleep(1.0)  # five more discovery rounds: logged once, not every round
+        output = manager.output()
+        assert output.count("rules on /typo/batery wait") == 1, output
+        assert "rules on /typo/gps wait" not in output, "a published topic is not logged"
+        assert "rules read /typo/gps (sensor_msgs/msg/NavSatFix)" in output
+    finally:
+        sensors.node.destroy_node()
 
 
 def test_a_byte_field_is_a_number_and_a_raising_rule_does_not_stop_the_manager(

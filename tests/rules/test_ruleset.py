@@ -194,3 +194,117 @@ def test_a_type_other_than_the_declared_one_names_both_and_the_declaration() -> 
         "    topic battery: sensor_msgs/msg/BatteryState",
         "                   ^",
     ]
+
+
+# -- contradictions through hysteresis -----------------------------------------------------
+
+
+def contradictions(*rules: tuple[str, str]) -> list[str]:
+    relations: dict[str, tuple[frozenset[str], frozenset[str]]] = {n: (frozenset({"location"}), frozenset()) for n in ("Indoor", "Outdoor")}
+    found = RuleSet.from_rules([Rule(name, text) for name, text in rules]).check(relations)
+    return [d.message for d in found]
+
+
+def test_a_contradiction_only_through_hysteresis_is_reported_and_says_so() -> None:
+    # Low holds from below 20 until the battery reaches 25; Up turns Night off at 22.
+    (warning,) = contradictions(
+        ("Low", "Night while battery.percentage < 20 hysteresis 5"),
+        ("Up", "deactivate Night when battery.percentage >= 22"),
+    )
+    assert warning.startswith(
+        "rules Low (<rules>:1) and Up may hold at the same time (Low's hysteresis 5 keeps it "
+        "holding past its threshold) and one activates Night while the other deactivates it"
+    )
+    # Past the margin, or without hysteresis, the conditions exclude each other.
+    assert not contradictions(
+        ("Low", "Night while battery.percentage < 20 hysteresis 5"),
+        ("Up", "deactivate Night when battery.percentage >= 25"),
+    )
+    assert not contradictions(
+        ("Low", "Night while battery.percentage < 20"),
+        ("Up", "deactivate Night when battery.percentage >= 22"),
+    )
+
+
+def test_hysteresis_widens_the_held_outcome_not_the_else_branch() -> None:
+    # Outdoor holds from gps >= 0 down to gps >= -1: Indoor at gps < -0.5 may meet it.
+    (warning,) = contradictions(
+        ("Gps", "Outdoor while gps.status >= 0 hysteresis 1"),
+        ("Lost", "Indoor while gps.status < -0.5"),
+    )
+    assert "(Gps's hysteresis 1 keeps" in warning
+    assert "both of exclusive group 'location'" in warning
+    # The else branch (Outdoor) is in force from the strict threshold (gps >= 0), not from
+    # the relaxed one (gps >= 1): it meets an Indoor rule between 0.2 and 0.8.
+    (warning,) = contradictions(
+        ("Gps", "Indoor while gps.status < 0 hysteresis 1 else Outdoor"),
+        ("Near", "activate Indoor when gps.status >= 0.2 and gps.status < 0.8"),
+    )
+    assert "both of exclusive group 'location'" in warning
+    assert "hysteresis" not in warning, "it holds without the hysteresis too"
+
+
+def test_hysteresis_under_not_widens_the_other_way_as_the_engine_evaluates_it() -> None:
+    # `not lux > 10 hysteresis 5` holds until lux > 15 (the engine: test_engine.py).
+    (warning,) = contradictions(
+        ("Dark", "Night while not light.lux > 10 hysteresis 5"),
+        ("Bright", "deactivate Night when light.lux > 12"),
+    )
+    assert "(Dark's hysteresis 5 keeps" in warning
+    assert not contradictions(
+        ("Dark", "Night while not light.lux > 10 hysteresis 5"),
+        ("Bright", "deactivate Night when light.lux > 15"),
+    )
+
+
+# -- the manager's checks: what `contextros check` refuses ---------------------------------
+
+
+def test_from_files_refuses_what_check_refuses_listing_every_error_in_file_order(
+    tmp_path: Path,
+) -> None:
+    """A layer error outside the rules (an unknown layer) stops the rules too, and every
+    error of every file is listed, in the order the files were given."""
+    second = tmp_path / "a_second.layers"
+    second.write_text("rule B: Night wile x.y > 1\nrule C: Night while 3 < 4\n", encoding="utf-8")
+    first = tmp_path / "z_first.layers"
+    first.write_text(
+        "layer A requires Nope:\n    def f(): ...\nrule A: Night while battery.percentage < 20\n",
+        encoding="utf-8",
+    )
+    with pytest.raises(LayerSyntaxError) as raised:
+        RuleSet.from_files([first, second])
+    assert [(Path(d.path).name, d.line) for d in raised.value.diagnostics] == [
+        ("z_first.layers", 1),
+        ("a_second.layers", 1),
+        ("a_second.layers", 2),
+    ]
+    assert "unknown layer 'Nope'" in raised.value.diagnostics[0].message
+
+
+def test_a_misspelt_declared_type_is_an_error_an_uninstalled_package_a_note() -> None:
+    from contextros.rules.ruleset import FieldLookup, NoSuchMessageType
+
+    def message_types(name: str) -> FieldLookup:
+        if name.startswith("sensor_msgs/"):
+            raise NoSuchMessageType("sensor_msgs.msg has no message type 'BateryState'")
+        raise ValueError("message package 'robot_msgs' is not installed here")
+
+    source = (
+        "topic battery: sensor_msgs/msg/BateryState\n"
+        "topic dock: robot_msgs/msg/Dock\n"
+        "rule Low: Night while battery.percentage < 20\n"
+        "rule Docked: Home while dock.contact\n"
+    )
+    layer_file = parse_with_diagnostics(source, "robot.layers")[0]
+    rules = RuleSet(layer_file.rules, {"robot.layers": source}, layer_file.topics)
+    found = rules.check_declared_fields(message_types)
+    assert [(d.severity.value, d.line, d.col) for d in found] == [
+        ("error", 1, 16),
+        ("note", 4, 25),
+    ]
+    assert found[0].message == (
+        "the declared type of topic 'battery' does not exist: sensor_msgs.msg has no message "
+        "type 'BateryState'"
+    )
+    assert "robot_msgs/msg/Dock (robot.layers:2) is not available here" in found[1].message

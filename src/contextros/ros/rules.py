@@ -4,11 +4,14 @@ Each topic a rule reads is resolved in the manager's namespace; its message type
 from the ROS graph once a publisher appears (and must be the type a `topic` declaration
 gives, if any), the rules' fields are checked against that type (an error names
 file:line:col and the rule stays off) and only then is the topic subscribed, so no message
-is ever evaluated against a field that does not exist. See docs/rules.md.
+is ever evaluated against a field that does not exist. A topic with no publisher after
+`UNPUBLISHED_GRACE` is logged once (a misspelt name leaves its rules waiting for ever).
+See docs/rules.md.
 """
 
 from __future__ import annotations
 
+import difflib
 import time
 from collections.abc import Callable
 from typing import Any
@@ -25,12 +28,16 @@ from contextros.rules import Firing, RuleEngine, RuleSet
 from contextros.rules.firings import FiringQueue
 from contextros.rules.ruleset import FieldKind
 
-__all__ = ["RULE_QOS", "RuleRunner", "field_kind", "message_class"]
+__all__ = ["RULE_QOS", "UNPUBLISHED_GRACE", "RuleRunner", "field_kind", "message_class"]
 
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
 RULE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
 )
+# Seconds after the manager's start before a topic the rules read and no node publishes is
+# logged: a robot's sensor nodes are up by then (started with the manager, or before it),
+# so a topic still missing is more likely misspelt or not launched than slow.
+UNPUBLISHED_GRACE = 5.0
 
 
 class RuleRunner:
@@ -44,6 +51,7 @@ class RuleRunner:
         relations: Callable[[], Any],
         *,
         discovery_period: float = 0.2,
+        unpublished_grace: float = UNPUBLISHED_GRACE,
     ) -> None:
         self.node = node
         self.rules = rules
@@ -64,6 +72,9 @@ class RuleRunner:
             lambda text: node.get_logger().info(text),
             automatic_requesters=(RECOVERY_REQUESTER,),
         )
+        self._started = time.monotonic()
+        self._unpublished_grace = unpublished_grace
+        self._unpublished_logged: set[str] = set()  # topics already logged as unpublished
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
             node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
@@ -79,11 +90,34 @@ class RuleRunner:
         for topic, resolved in list(self._unbound.items()):
             types = graph.get(resolved)
             if not types:
+                self._unpublished(topic, resolved, graph)
                 continue
             if len(types) != 1:
                 self._refuse(topic, ", ".join(types), f"topic {resolved} has several types")
                 continue
             self._bind(topic, resolved, types[0])
+
+    def _unpublished(self, topic: str, resolved: str, graph: dict[str, list[str]]) -> None:
+        """Log, once and after the grace period, that no node publishes `resolved`."""
+        waited = time.monotonic() - self._started
+        if waited < self._unpublished_grace or topic in self._unpublished_logged:
+            return
+        self._unpublished_logged.add(topic)
+        readers = [
+            rule.name for rule in self.rules.rules if any(r.topic == topic for r in rule.fields)
+        ]
+        close = difflib.get_close_matches(resolved, list(graph), n=3)
+        hint = f" Published topics with a close name: {', '.join(close)}." if close else ""
+        reads = (
+            f"rule {readers[0]} reads it"
+            if len(readers) == 1
+            else f"rules {', '.join(readers)} read it"
+        )
+        self.node.get_logger().warning(
+            f"rules on {resolved} wait: no node has published it in the {waited:.0f} s since "
+            f"the manager started ({reads}). Is its name misspelt, or its publisher not "
+            f"started?{hint}"
+        )
 
     def _refuse(self, topic: str, type_name: str, why: str) -> None:
         if self._failed.get(topic) != type_name:
