@@ -117,7 +117,8 @@ test-slow: ros cpp $(VENV)/.stamp-dev
 # The layer-language fuzzers on many more inputs than `make test` gives them.
 fuzz: $(VENV)/.stamp-dev
 	CONTEXTROS_FUZZ_EXAMPLES=5000 $(PY) -m pytest -q tests/language/test_fuzz.py \
-	  tests/language/test_cpp_diagnostics.py::test_mutated_files_only_raise_the_languages_errors
+	  tests/language/test_cpp_diagnostics.py::test_mutated_files_only_raise_the_languages_errors \
+	  tests/language/test_mutation_corpus.py
 
 # The platform wheel into dist/ (docs/install.md), from the build tree `make` keeps.
 wheel: ros $(VENV)/.stamp-dev

@@ -43,7 +43,7 @@ from contextros.language.syntax import (
     SourceLine,
     char_of_byte,
 )
-from contextros.language.words import found_text
+from contextros.language.words import found_text, misspelt
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
 _Where = Callable[[int, int], tuple[int, int]]
@@ -55,6 +55,11 @@ _NAME = r"[^\W\d]\w*"
 # A column-0 line that starts a declaration (and cannot be Python: `layer X`, `base:`);
 # `rule`, `parameter`, `lifecycle` and `topic` lines are detected as in every flavour (lines.py).
 _DECLARATION_START = re.compile(rf"(?:(layer|group)[ \t]+({_NAME})|(base)[ \t]*:)")
+_MISSPELT_START = re.compile(
+    rf"({_NAME})(?:[ \t]+({_NAME})[ \t]*(?::|$|[ \t]+{_NAME})|[ \t]*:[ \t]*(?:#.*)?$)"
+)
+# Python's soft keywords: `case x:` is Python, not a misspelt `base`.
+_SOFT_KEYWORDS = frozenset({"match", "case", "type", "_"})
 # Keywords that may follow a name in a Python expression statement.
 _OPERATOR_WORDS = frozenset({"and", "or", "is", "in", "not", "if", "else", "for", "async"})
 _DECLARATION_WORD = re.compile(r"(layer|base|group|rule|parameter|lifecycle|topic)\b")
@@ -132,7 +137,21 @@ def _starts_declaration(text: str) -> bool:
     if is_line_declaration(text):
         return True
     match = _DECLARATION_START.match(text)
-    return match is not None and match.group(2) not in _OPERATOR_WORDS
+    if match is not None:
+        return match.group(2) not in _OPERATOR_WORDS
+    return _misspelt_declaration(text)
+
+
+def _misspelt_declaration(text: str) -> bool:
+    """`layr Indoor:`, `grou g: A, B`, `bas:`: a declaration with its word misspelt (no
+    Python statement reads so: two names in a row, or a name and a lone ':')."""
+    match = _MISSPELT_START.match(text)
+    if match is None or match.group(1) in _SOFT_KEYWORDS:
+        return False
+    meant = misspelt(match.group(1), ("layer", "group", "base"))
+    if meant == "base":
+        return match.group(2) is None
+    return bool(meant) and match.group(2) is not None
 
 
 def _indented_declaration(text: str) -> bool:
@@ -281,7 +300,7 @@ class _Parser:
     def _declaration(self, start: int, end: int, result: LayerFile) -> None:
         word = _DECLARATION_WORD.match(self.lines[start])
         if word is None:
-            found = self.lines[start].split()[0]
+            found = re.split(r"[\s:]", self.lines[start], maxsplit=1)[0] or self.lines[start]
             self.sink.error(
                 "expected a declaration ('layer', 'base' or 'group'), found "
                 f"{found_text(found, ('layer', 'group', 'base'))}; "
