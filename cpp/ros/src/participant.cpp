@@ -321,8 +321,13 @@ struct Participant::Impl {
     msg::LayerState message;
     while (proposal_subscription.take(message)) {
       const LayerState proposal = state_from_msg(message);
-      std::vector<Veto> to_ask;
+      bool wanted = false;
       {
+        std::lock_guard<std::mutex> lock(mutex);
+        wanted = protocol.wants_vote(proposal);
+      }
+      std::vector<Veto> to_ask;
+      if (wanted) {  // once per proposal, not on each of its repeats
         std::lock_guard<std::mutex> lock(listeners_mutex);
         to_ask = vetoes;
       }

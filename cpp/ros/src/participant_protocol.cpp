@@ -208,6 +208,11 @@ ParticipantActions ParticipantProtocol::receive_state(const LayerState& state,
   return actions;
 }
 
+bool ParticipantProtocol::wants_vote(const LayerState& proposal) const {
+  const bool voted = vote_epoch_ == proposal.epoch && vote_manager_id_ == proposal.manager_id;
+  return !voted && proposal.epoch > newest_epoch() && state_problems(proposal).empty();
+}
+
 ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& proposal,
                                                          Clock::time_point now,
                                                          std::string_view veto) {
@@ -217,8 +222,7 @@ ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& propo
     return {StateRejected{std::move(problems)}};
   }
   ParticipantActions actions = heard_manager(proposal.manager_id, now);
-  const bool voted = vote_epoch_ == proposal.epoch && vote_manager_id_ == proposal.manager_id;
-  if (proposal.epoch <= newest_epoch() || voted) {
+  if (!wants_vote(proposal)) {
     return actions;  // stale, or already voted (every report repeats the vote)
   }
   std::vector<std::string> reasons;

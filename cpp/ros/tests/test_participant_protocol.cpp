@@ -230,7 +230,9 @@ TEST(ParticipantProtocol, AnErrorSpanningLinesIsReportedFlat) {
 TEST(ParticipantProtocol, AVoteIsYesUnlessACriticalSectionOrARelationSaysNo) {
   ParticipantProtocol p("/p", "1", {LayerInfo{"Gps", {}, {"Outdoor"}, {}, ""}}, 250ms, 3s, {});
   p.receive_state(state(0), t0);  // a recovering manager's heartbeat: m1 is heard
+  EXPECT_TRUE(p.wants_vote(state(2, {"Outdoor", "Gps"})));
   const ParticipantReport yes = only_report(p.receive_proposal(state(2, {"Outdoor", "Gps"}), t0));
+  EXPECT_FALSE(p.wants_vote(state(2, {"Outdoor", "Gps"}))) << "the vetoes are asked once";
   EXPECT_EQ(yes.vote_epoch, 2u);
   EXPECT_EQ(yes.vote_manager_id, "m1");
   EXPECT_TRUE(yes.vote_yes);

@@ -132,6 +132,9 @@ class ParticipantProtocol {
   // nothing: the node switches only when the manager commits that epoch as a state.
   ParticipantActions receive_proposal(const LayerState& proposal, Clock::time_point now,
                                       std::string_view veto = {});
+  // Whether receive_proposal would vote on `proposal` (new, valid, not voted on yet): the
+  // adapter asks the application's vetoes once per proposal, not on each repeat.
+  bool wants_vote(const LayerState& proposal) const;
   // The runtime applied `state` (at once, or when a critical section closed).
   ParticipantActions applied(const LayerState& state, Clock::time_point now);
   // The runtime queued `state` behind an open critical section.
