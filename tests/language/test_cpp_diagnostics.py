@@ -323,7 +323,7 @@ def test_a_function_of_an_unseen_scope_must_be_a_method_where_cpp_can_tell(tmp_p
     build = cxx("-std=c++17", "-c", "hidden.layers.cpp", "-o", "hidden.o", cwd=tmp_path)
     assert build.returncode != 0
     first = next(line for line in build.stderr.splitlines() if "error" in line)
-    assert first.startswith("hidden.cpp.layers:4:"), build.stderr
+    assert first.startswith(f"{layers}:4:"), build.stderr
     assert "cannot layer nav::speed: not a non-static member function" in first
 
 
