@@ -1,9 +1,10 @@
-"""The C++ dispatch benchmark built twice, from an earlier revision's runtime (the layered
-call before issue 18: two dependent loads) and from this checkout's, and run alternately at
-the same stack offsets: before and after side by side in one run. Not part of `make bench`
-(it builds a revision from git); writes its own section of docs/benchmarks.md.
+"""The C++ dispatch benchmark built twice, from an earlier revision's runtime and from this
+checkout's, and run alternately at the same stack offsets: before and after side by side in
+one run. Not part of `make bench` (it builds a revision from git); writes its own section of
+docs/benchmarks.md, one per issue.
 
-    .venv/bin/python -m benchmarks.cpp_dispatch_before_after [REVISION]   # default: main
+    .venv/bin/python -m benchmarks.cpp_dispatch_before_after [REVISION [ISSUE]]
+    # default: main, issue 18
 
 Both builds use this checkout's benchmark sources (cpp/core/benchmarks) and layer compiler,
 and align every function to 64 bytes (as the benchmark's own build does), so only the
@@ -14,26 +15,43 @@ runtime (cpp/core: layered.hpp and the library) differs. ns per call from the fa
 from __future__ import annotations
 
 import os
-import platform
 import statistics
 import subprocess
 import sys
 import tarfile
 import tempfile
+from collections.abc import Callable
 from io import BytesIO
 from pathlib import Path
 
+from benchmarks.__main__ import machine
 from benchmarks.cpp_dispatch import EXECUTABLE, ROOT, STACK_OFFSETS, _tool, measure, splice
 
-TITLE = "C++ dispatch before and after issue 18 (one run, two builds)"
-CASES = [
-    "layered: no active layer",
-    "layered: one partial, no proceed",
-    "layered: one partial, proceeds",
-    "layered: three partials, proceed",
-    "atomic function pointer: one partial, no proceed",
-    "plain out-of-line call",
-]
+TITLE = "C++ dispatch before and after {issue} (one run, two builds)"
+# The cases each issue's table shows (every case both builds measured, for another issue).
+CASES = {
+    "issue 18": [
+        "layered: no active layer",
+        "layered: one partial, no proceed",
+        "layered: one partial, proceeds",
+        "layered: three partials, proceed",
+        "atomic function pointer: one partial, no proceed",
+        "plain out-of-line call",
+    ],
+    "issue 26": [
+        "plain member call",
+        "layered method: one partial, no proceed",
+        "layered method: one partial, for the object (activate_for)",
+        "layered method: one partial, another object with layers of its own",
+        "layered method: one partial, another object whose own layers change its chain",
+        "layered: one partial, no proceed",
+        "layered: one partial, proceeds",
+        "layered: three partials, proceed",
+        "layered: one partial, no proceed, scoped (ScopedActivation)",
+        "atomic function pointer: one partial, no proceed",
+        "plain out-of-line call",
+    ],
+}
 
 
 def _build(source: Path, build: Path) -> Path:
@@ -86,12 +104,17 @@ def run(revision: str = "main") -> dict[str, dict[str, list[tuple[float, float]]
     return runs
 
 
-def markdown(runs: dict[str, dict[str, list[tuple[float, float]]]], revision: str) -> str:
+def markdown(
+    runs: dict[str, dict[str, list[tuple[float, float]]]], revision: str, issue: str = "issue 18"
+) -> str:
     lines = [
         f"| case | before ({revision}) ns | x plain, median | after ns | x plain, median |",
         "|---|---:|---:|---:|---:|",
     ]
-    for case in CASES:
+    shown = CASES.get(issue) or [case for case in runs["after"] if case in runs["before"]]
+    for case in shown:
+        if case not in runs["before"]:
+            continue
         cells = []
         for name in ("before", "after"):
             results = runs[name][case]
@@ -104,6 +127,21 @@ def markdown(runs: dict[str, dict[str, list[tuple[float, float]]]], revision: st
     def fastest(name: str, case: str) -> float:
         return min(ns for ns, _ in runs[name][case])
 
+    lines += [
+        "",
+        *(_issue_26 if issue == "issue 26" else _issue_18)(fastest),
+        "",
+        f"Machine: {machine()}, shared (load average "
+        f"{os.getloadavg()[0]:.1f} when written); command: `.venv/bin/python -m "
+        f"benchmarks.cpp_dispatch_before_after {revision} '{issue}'`.",
+    ]
+    return "\n".join(lines)
+
+
+Fastest = Callable[[str, str], float]
+
+
+def _issue_18(fastest: Fastest) -> list[str]:
     floor = fastest("after", "atomic function pointer: one partial, no proceed")
     call = fastest("after", "layered: one partial, no proceed")
     one = fastest("after", "layered: one partial, proceeds") - fastest(
@@ -112,8 +150,7 @@ def markdown(runs: dict[str, dict[str, list[tuple[float, float]]]], revision: st
     three = fastest("after", "layered: three partials, proceed") - fastest(
         "before", "layered: three partials, proceed"
     )
-    lines += [
-        "",
+    return [
         f"After: a layered call without proceed costs {call:.2f} ns, the atomic function "
         f"pointer {floor:.2f} ns (one load, one indirect call: the same instructions). "
         f"Before, the second, dependent load cost "
@@ -121,17 +158,35 @@ def markdown(runs: dict[str, dict[str, list[tuple[float, float]]]], revision: st
         "loop (the indirect call's target is predicted, so the load is off the critical "
         f"path). A call whose head proceeds costs {one:+.2f} ns after (one partial), "
         f"{three:+.2f} ns (three partials): the head's proceed goes through one more "
-        "indirect call to find its chain.",
-        "",
-        f"Machine: {platform.machine()}, {os.cpu_count()} cores, shared (load average "
-        f"{os.getloadavg()[0]:.1f} when written); command: `.venv/bin/python -m "
-        f"benchmarks.cpp_dispatch_before_after {revision}`.",
+        "indirect call to find its chain."
     ]
-    return "\n".join(lines)
+
+
+def _issue_26(fastest: Fastest) -> list[str]:
+    def member(name: str, case: str) -> str:
+        return f"{fastest(name, case) / fastest(name, 'plain member call'):.2f}x"
+
+    method = "layered method: one partial, no proceed"
+    own = "layered method: one partial, for the object (activate_for)"
+    other = "layered method: one partial, another object with layers of its own"
+    refining = "layered method: one partial, another object whose own layers change its chain"
+    return [
+        f"A plain member call's multiple, fastest rounds, before -> after: a layered method "
+        f"{member('before', method)} -> {member('after', method)} (target <= 1.3x); for its "
+        f"object only {member('before', own)} -> {member('after', own)} (target <= 3x); while "
+        f"another object has layers of its own {member('before', other)} -> "
+        f"{member('after', other)}, that change the method's chain "
+        f"{member('before', refining)} -> {member('after', refining)}. A free function with "
+        f"one partial: {fastest('before', 'layered: one partial, no proceed'):.2f} -> "
+        f"{fastest('after', 'layered: one partial, no proceed'):.2f} ns, the atomic function "
+        f"pointer {fastest('after', 'atomic function pointer: one partial, no proceed'):.2f} "
+        "ns."
+    ]
 
 
 if __name__ == "__main__":
     revision = sys.argv[1] if len(sys.argv) > 1 else "main"
-    table = markdown(run(revision), revision)
+    issue = sys.argv[2] if len(sys.argv) > 2 else "issue 18"
+    table = markdown(run(revision), revision, issue)
     print(table)
-    splice(f"{(__doc__ or '').strip()}\n\n{table}", title=TITLE)
+    splice(f"{(__doc__ or '').strip()}\n\n{table}", title=TITLE.format(issue=issue))

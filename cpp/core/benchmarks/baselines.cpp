@@ -54,6 +54,8 @@ std::atomic<const Node*> head{&base_chain};
 
 int plain(int x) { return x + 1; }
 
+int Counter::add(int x) { return x + 1; }
+
 int pointer_call(int x) { return pointer.load(std::memory_order_acquire)(x); }
 
 int pointer_call_with_proceed(int x) {

@@ -7,6 +7,11 @@ namespace baseline {
 
 int plain(int x);
 
+// A plain member function, out of line (what a layered method is compared with).
+struct Counter {
+  int add(int x);
+};
+
 // The least any rewired dispatch can cost: one atomic load of a function pointer and an
 // indirect call of it (no proceed, no chain; installed by set_active below).
 int pointer_call(int x);

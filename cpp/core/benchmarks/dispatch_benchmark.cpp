@@ -32,13 +32,17 @@ struct Case {
   double best;
   std::vector<double> ratios;
   // How the layers are active: decisively, by a ScopedActivation of the timing thread, for
-  // the called object only (activate_for), or decisively while another object has its own.
-  enum class Mode { decisive, scoped, object, other_object } mode = Mode::decisive;
+  // the called object only (activate_for), or decisively while another object has layers of
+  // its own: ones the method has no partial for, or ones that change its chain.
+  enum class Mode { decisive, scoped, object, other_object, other_object_refining } mode =
+      Mode::decisive;
 };
 
 BenchCounter counter, other_counter;
+baseline::Counter plain_counter;
 // A method call, through a plain function as the other cases are.
 int method_call(int x) { return counter.add(x); }
+int plain_method_call(int x) { return plain_counter.add(x); }
 
 
 // A loop calling F directly, as a program calls a function (no call through a pointer).
@@ -83,11 +87,14 @@ int main(int argc, char** argv) {
       {"layered: three partials, proceed", three, &time_loop<&step>, {}, {}},
       {"layered: one partial, no proceed, scoped (ScopedActivation)", one, &time_loop<&single>,
        {}, {}, Case::Mode::scoped},
+      {"plain member call", none, &time_loop<&plain_method_call>, {}, {}},
       {"layered method: one partial, no proceed", one, &time_loop<&method_call>, {}, {}},
-      {"layered method: one partial, for the object (activate_for)", one,
-       &time_loop<&method_call>, {}, {}, Case::Mode::object},
       {"layered method: one partial, another object with layers of its own", one,
        &time_loop<&method_call>, {}, {}, Case::Mode::other_object},
+      {"layered method: one partial, for the object (activate_for)", one,
+       &time_loop<&method_call>, {}, {}, Case::Mode::object},
+      {"layered method: one partial, another object whose own layers change its chain", one,
+       &time_loop<&method_call>, {}, {}, Case::Mode::other_object_refining},
       {"if/else (Listing 2): no active layer", none, &time_loop<&baseline::if_else_step>, {}, {}},
       {"if/else (Listing 2): one partial, no proceed", one, &time_loop<&baseline::if_else_single>, {}, {}},
       {"if/else (Listing 2): one partial, proceeds", one, &time_loop<&baseline::if_else_step>, {}, {}},
@@ -107,6 +114,8 @@ int main(int argc, char** argv) {
         configure(item.layers);
         if (item.mode == Case::Mode::other_object) {
           contextros::activate_for(other_counter, "BenchL2");
+        } else if (item.mode == Case::Mode::other_object_refining) {
+          contextros::deactivate_for(other_counter, "BenchL1");
         }
       }
       const double cost = item.time(iterations);

@@ -99,9 +99,16 @@ class Runtime {
   }
 
   void rewire_all() {
-    for (LayeredBase* function : functions) {
-      function->rewire(active, live_scopes > 0, !receivers.empty());
-    }
+    const LayeredBase::Levels levels = receiver_levels();
+    for (LayeredBase* function : functions) function->rewire(active, live_scopes > 0, levels);
+  }
+
+  // What a call on each object with layers of its own runs, without scopes (lock held).
+  LayeredBase::Levels receiver_levels() {
+    LayeredBase::Levels levels;
+    levels.reserve(receivers.size());
+    for (const auto& item : receivers) levels.emplace_back(item.first, object_level(item.first));
+    return levels;
   }
 
   // Applies `plan` now (lock held); the outcome says what became of it.
@@ -262,7 +269,7 @@ void LayeredBase::enroll() {
   std::lock_guard<std::recursive_mutex> lock(runtime.mutex);
   runtime.functions.push_back(this);
   enrolled_ = true;
-  rewire(runtime.active, runtime.live_scopes > 0, !runtime.receivers.empty());
+  rewire(runtime.active, runtime.live_scopes > 0, runtime.receiver_levels());
 }
 
 const void* scoped_head(const LayeredBase& function, const void* decisive, Compose compose,

@@ -3,9 +3,13 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <atomic>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <type_traits>
+#include <vector>
 
 #include "contextros/contextros.hpp"
 #include "fixtures.hpp"
@@ -172,6 +176,76 @@ TEST_F(Generated, ADecisiveSwitchThatConflictsSuspendsTheObjectsLayers) {
   EXPECT_THROW(contextros::activate_for(mine, "Outdoor"), contextros::RelationError);
   contextros::set_active({"Indoor"});  // the conflict is gone: the level applies again
   EXPECT_EQ(mine.clean("hall"), "quietly wipe+vacuum hall by r1");
+}
+
+// Issue 26: a proceed is two words for a method as for a free function, so the System V ABI
+// passes it in registers (a third word, the object, passed it through memory: 4x slower).
+TEST_F(Generated, AProceedIsTwoWordsPassedInRegisters) {
+  using MethodProceed = contextros::ProceedOf<decltype(&Robot::clean)>;
+  using FunctionProceed = contextros::ProceedOf<decltype(speed)>;
+  EXPECT_EQ(sizeof(MethodProceed), 2 * sizeof(void*));
+  EXPECT_EQ(sizeof(FunctionProceed), 2 * sizeof(void*));
+  EXPECT_TRUE(std::is_trivially_copyable_v<MethodProceed>);
+  EXPECT_TRUE(std::is_trivially_copyable_v<FunctionProceed>);
+}
+
+// Objects with layers of their own are found by address in a sorted table (many of them:
+// a binary search); every other object takes the decisive chain.
+TEST_F(Generated, ManyObjectsWithLayersOfTheirOwnEachRunTheirOwnChain) {
+  std::vector<Robot> robots(24);
+  std::vector<Forgotten<Robot>> forget;
+  for (const auto& robot : robots) forget.push_back({robot});
+  contextros::activate("Indoor");
+  for (std::size_t i = 0; i < robots.size(); i += 3) contextros::activate_for(robots[i], "Night");
+  for (std::size_t i = 1; i < robots.size(); i += 3) contextros::deactivate_for(robots[i], "Indoor");
+  auto expect = [&](const char* night, const char* hidden, const char* decisive) {
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      EXPECT_EQ(robots[i].clean("hall"), i % 3 == 0 ? night : i % 3 == 1 ? hidden : decisive)
+          << "robot " << i;
+    }
+  };
+  expect("quietly wipe+vacuum hall by r1", "vacuum hall", "wipe+vacuum hall");
+  contextros::set_active({});  // a decisive switch renews every object's chain
+  expect("quietly vacuum hall by r1", "vacuum hall", "vacuum hall");
+  for (std::size_t i = 0; i < robots.size(); i += 6) contextros::reset_for(robots[i]);
+  for (std::size_t i = 0; i < robots.size(); i += 3) {
+    EXPECT_EQ(robots[i].clean("hall"), i % 6 == 0 ? "vacuum hall" : "quietly vacuum hall by r1");
+  }
+}
+
+// A call on an object runs the chain of one configuration while another thread changes the
+// object's own layers and the decisive ones (tables are replaced, never changed in place).
+TEST_F(Generated, MethodCallsNeverSeeAMixedChainWhileObjectsGainAndLoseLayers) {
+  Robot mine, other;
+  Forgotten<Robot> forget_mine{mine}, forget_other{other};
+  const std::set<std::string> valid_mine = {"vacuum hall", "wipe+vacuum hall",
+                                            "quietly vacuum hall by r1",
+                                            "quietly wipe+vacuum hall by r1"};
+  const std::set<std::string> valid_other = {"vacuum hall", "wipe+vacuum hall"};
+  std::atomic<bool> stop{false};
+  std::atomic<long> calls{0};
+  std::vector<std::string> bad;
+  std::thread caller([&] {
+    while (!stop.load()) {
+      const std::string seen_mine = mine.clean("hall");
+      const std::string seen_other = other.clean("hall");
+      calls.fetch_add(1);
+      if (!valid_mine.count(seen_mine)) bad.push_back(seen_mine);
+      if (!valid_other.count(seen_other)) bad.push_back(seen_other);
+    }
+  });
+  while (calls.load() < 100) std::this_thread::yield();
+  for (int round = 0; round < 2000; ++round) {
+    contextros::set_active(round % 2 ? Names{"Indoor"} : Names{});
+    if (round % 3 == 0) {
+      contextros::activate_for(mine, "Night");
+    } else {
+      contextros::reset_for(mine);
+    }
+  }
+  stop.store(true);
+  caller.join();
+  EXPECT_TRUE(bad.empty()) << bad.size() << " wrong results, e.g. " << (bad.empty() ? "" : bad[0]);
 }
 
 TEST_F(Generated, GuardsApplyToPerObjectActivation) {

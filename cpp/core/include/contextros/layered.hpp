@@ -3,13 +3,20 @@
 // A layered function has a base implementation (or none) and one partial implementation
 // per layer that refines it. For every configuration the runtime composes the chain of
 // implementations once (the most recently activated layer outermost, then the next older
-// one, ..., then the base), caches it for that configuration and installs its head's code
-// with one atomic store. A call is one atomic load and one indirect call of that code, as a
-// plain atomic function pointer; the head's proceed() finds the chain installed with it.
+// one, ..., then the base), caches it for that configuration and installs it with one
+// atomic store. A free function's call is one atomic load and one indirect call of the
+// head's code, as a plain atomic function pointer; the head's proceed() finds the chain
+// installed with it. A method's call loads the head link, then its code (two dependent
+// loads): its proceed carries the link and the object, two registers, as a free
+// function's carries the link and the head's code (a third word would pass it through
+// memory). While objects have layers of their own (activate_for), a method whose chain
+// differs for some of them goes through their table: the calls on other objects take the
+// decisive chain after one look-up, without the per-thread scoped path.
 // Chains are immutable, so a call and all its proceed() calls run the implementations of
 // one configuration, whatever another thread switches meanwhile.
 // Composed chains are never freed before the layered function is (a running call may use
-// them); there is one per distinct configuration seen.
+// them); there is one per distinct configuration seen, and one table of objects per
+// distinct set of objects with layers of their own (and of their chains) seen.
 //
 // Generated code (contextros compile) declares one Layered object per function; see
 // docs/language.md. Writing one by hand works too:
@@ -23,11 +30,14 @@
 //   double speed(double f) { return speed_layered.invoke(nullptr, f); }
 #pragma once
 
+#include <algorithm>
 #include <atomic>
 #include <cstddef>
+#include <cstdint>
 #include <initializer_list>
 #include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <type_traits>
 #include <utility>
@@ -51,11 +61,15 @@ class LayeredBase {
 
   const std::string& name() const noexcept { return name_; }
 
+  // The objects with layers of their own (activate_for) and the configuration a call on
+  // each runs (without scopes).
+  using Levels = std::vector<std::pair<const void*, std::vector<std::string>>>;
+
   // Called by the runtime, its lock held: install the chain composed for `configuration`
-  // (oldest first), or the scoped entry when `scoped` (threads with scoped activations) or,
-  // for a method, when `receivers` (objects with layers of their own: activate_for).
+  // (oldest first), or the scoped entry when `scoped` (threads with scoped activations);
+  // for a method, the chains of the `receivers` too.
   virtual void rewire(const std::vector<std::string>& configuration, bool scoped,
-                      bool receivers) = 0;
+                      const Levels& receivers) = 0;
 
  protected:
   // Registers with the runtime, which rewires the function at once. The last thing a
@@ -84,20 +98,6 @@ const void* scoped_head(const LayeredBase& function, const void* decisive, Compo
 [[noreturn]] void throw_no_implementation(const std::string& function, const void* receiver);
 [[noreturn]] void throw_proceed_past_end(const std::string& function, const char* layer);
 
-// The object a method's proceed carries; nothing for a free function (two registers in all).
-template <class Self>
-class ProceedSelf {
- protected:
-  explicit ProceedSelf(Self* self) noexcept : self_(self) {}
-  Self* self_;
-};
-template <>
-class ProceedSelf<void> {
- protected:
-  explicit ProceedSelf(void*) noexcept {}
-  static constexpr void* self_ = nullptr;
-};
-
 }  // namespace detail
 
 template <class Self, class Signature>
@@ -107,10 +107,15 @@ class Layered;
 // method) for a layered method, void for a free function.
 template <class Self, class R, class... Args>
 class Layered<Self, R(Args...)> final : public detail::LayeredBase {
+  static constexpr bool is_method = !std::is_void_v<Self>;
+
  public:
   class Proceed;
   // An implementation: a partial or the base. `proceed` runs the next one.
   using Impl = R (*)(Proceed proceed, Args... args);
+  // What a proceed carries beside its link: the object of a method; for a free function,
+  // the code of the head of the call (what head_proceed needs).
+  using Carried = std::conditional_t<is_method, Self*, Impl>;
 
   struct Partial {
     std::string layer;
@@ -125,22 +130,26 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     const char* layer;  // the layer whose partial this is; "" for the base
   };
 
-  // The next implementation of the running chain, and the object of a method.
-  class Proceed : detail::ProceedSelf<Self> {
+  // The next implementation of the running chain, and the object of a method. Two words:
+  // passed in registers.
+  class Proceed {
    public:
     R operator()(Args... args) const {
       const Node* next = node_->next;
-      return next->fn(Proceed(next, head_, this->self_), std::forward<Args>(args)...);
+      return next->fn(Proceed(next, carried_), std::forward<Args>(args)...);
     }
     // The object a layered method runs on.
-    std::add_lvalue_reference_t<Self> self() const noexcept { return *this->self_; }
+    template <class S = Self, std::enable_if_t<!std::is_void_v<S>, int> = 0>
+    S& self() const noexcept {
+      return *carried_;
+    }
 
    private:
     friend class Layered;
-    Proceed(const Node* node, Impl head, Self* self) noexcept
-        : detail::ProceedSelf<Self>(self), node_(node), head_(head) {}
-    const Node* node_;  // the running implementation's link; the entry for the head of a call
-    Impl head_;         // the head of the call (what the entry's proceed needs)
+    Proceed(const Node* node, Carried carried) noexcept : node_(node), carried_(carried) {}
+    // The running implementation's link; for the head of a free function's call, the entry.
+    const Node* node_;
+    Carried carried_;
   };
 
   // `base` may be null (no base: a call with no active partial throws
@@ -157,35 +166,64 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   Layered(const Layered&) = delete;
   Layered& operator=(const Layered&) = delete;
 
-  // The call: one atomic load (the head's code) and one indirect call, as a plain atomic
-  // function pointer. The head gets the entry as its link: its proceed goes through
-  // head_proceed, which finds the chain installed with that head.
+  // The call. A free function: one atomic load (the head's code) and one indirect call, as
+  // a plain atomic function pointer; the head gets the entry as its link, so its proceed
+  // goes through head_proceed, which finds the chain installed with that head. A method:
+  // the head link, then its code (the chain is bound by the first load).
   R invoke(Self* self, Args... args) const {
-    const Impl head = head_.load(std::memory_order_acquire);
-    return head(Proceed(&entry_, head, self), std::forward<Args>(args)...);
+    if constexpr (is_method) {
+      const Node* head = head_link_.load(std::memory_order_acquire);
+      return head->fn(Proceed(head, self), std::forward<Args>(args)...);
+    } else {
+      const Impl head = head_.load(std::memory_order_acquire);
+      return head(Proceed(&entry_, head), std::forward<Args>(args)...);
+    }
   }
 
   void rewire(const std::vector<std::string>& configuration, bool scoped,
-              bool receivers) override {
+              const Levels& receivers) override {
     const Node* chain = compose(configuration);
-    const std::size_t index = index_of(chain->fn);
-    // Before the head is published: a call that loads the head finds its chain.
-    if (index <= partials_.size()) latest_[index].store(chain, std::memory_order_release);
     decisive_.store(chain, std::memory_order_release);
-    const bool slow = scoped || (receivers && !std::is_void_v<Self>);
-    head_.store(slow ? &Layered::scoped_entry : chain->fn, std::memory_order_release);
+    if constexpr (is_method) {
+      const Node* head = scoped ? &scoped_link_ : chain;
+      if (!scoped) {
+        // The objects whose chain differs (their layers refine this method), by address.
+        Table table;
+        for (const auto& [receiver, layers] : receivers) {
+          const Node* own = compose(layers);
+          if (own != chain) table.emplace_back(reinterpret_cast<std::uintptr_t>(receiver), own);
+        }
+        if (!table.empty()) {
+          std::sort(table.begin(), table.end());
+          // Before the head is published: a call through the table finds it.
+          table_.store(&*tables_.insert(std::move(table)).first, std::memory_order_release);
+          head = &table_link_;
+        }
+      }
+      head_link_.store(head, std::memory_order_release);
+    } else {
+      const std::size_t index = index_of(chain->fn);
+      // Before the head is published: a call that loads the head finds its chain.
+      if (index <= partials_.size()) latest_[index].store(chain, std::memory_order_release);
+      head_.store(scoped ? &Layered::scoped_entry : chain->fn, std::memory_order_release);
+    }
   }
 
  private:
   // The proceed of the head of a call: the decisive chain's rest, or, when a switch came
   // between the call's load of its head and this proceed, the rest of the chain installed
   // last with that head (a configuration active during the call: never a mix of two).
+  // (A free function's only: a method's call starts at its chain's head link.)
   static R head_proceed(Proceed proceed, Args... args) {
-    const Layered* self = proceed.node_->owner;
-    const Node* chain = self->decisive_.load(std::memory_order_acquire);
-    if (chain->fn != proceed.head_) chain = self->latest(proceed.head_);
-    const Node* next = chain->next;
-    return next->fn(Proceed(next, proceed.head_, proceed.self_), std::forward<Args>(args)...);
+    if constexpr (is_method) {
+      return past_end(proceed, std::forward<Args>(args)...);
+    } else {
+      const Layered* self = proceed.node_->owner;
+      const Node* chain = self->decisive_.load(std::memory_order_acquire);
+      if (chain->fn != proceed.carried_) chain = self->latest(proceed.carried_);
+      const Node* next = chain->next;
+      return next->fn(Proceed(next, proceed.carried_), std::forward<Args>(args)...);
+    }
   }
 
   // The chain installed last with `head` at its head.
@@ -230,14 +268,46 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
     return head;
   }
 
-  // Installed while scoped activations or objects with layers of their own exist: finds
-  // the chain for the calling thread and the call's object.
+  // The object of a method's call; none for a free function.
+  static const void* receiver(const Proceed& proceed) noexcept {
+    if constexpr (is_method) {
+      return proceed.carried_;
+    } else {
+      return nullptr;
+    }
+  }
+
+  // What a call of the chain `head` carries: the object of a method, the head's code for a
+  // free function.
+  static Carried carried(const Node* head, const Proceed& proceed) noexcept {
+    if constexpr (is_method) {
+      return proceed.carried_;
+    } else {
+      return head->fn;
+    }
+  }
+
+  // Installed while scoped activations exist: finds the chain for the calling thread and
+  // the call's object.
   static R scoped_entry(Proceed proceed, Args... args) {
     const Layered* self = proceed.node_->owner;
-    const Node* head = static_cast<const Node*>(detail::scoped_head(
-        *self, self->decisive_.load(std::memory_order_acquire), &Layered::compose_for,
-        proceed.self_));
-    return head->fn(Proceed(head, head->fn, proceed.self_), std::forward<Args>(args)...);
+    const Node* head = static_cast<const Node*>(
+        detail::scoped_head(*self, self->decisive_.load(std::memory_order_acquire),
+                            &Layered::compose_for, receiver(proceed)));
+    return head->fn(Proceed(head, carried(head, proceed)), std::forward<Args>(args)...);
+  }
+
+  // A method's head while objects whose chain differs exist (and no scopes): the chain of
+  // the call's object in their table, else the decisive chain.
+  static R table_entry(Proceed proceed, Args... args) {
+    const Layered* self = proceed.node_->owner;
+    const Table& table = *self->table_.load(std::memory_order_acquire);
+    const Node* head = self->decisive_.load(std::memory_order_acquire);
+    const auto key = reinterpret_cast<std::uintptr_t>(receiver(proceed));
+    const auto found =
+        std::lower_bound(table.begin(), table.end(), typename Table::value_type{key, nullptr});
+    if (found != table.end() && found->first == key) head = found->second;
+    return head->fn(Proceed(head, proceed.carried_), std::forward<Args>(args)...);
   }
 
   static const void* compose_for(const detail::LayeredBase& function,
@@ -246,7 +316,7 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   }
 
   static R no_implementation(Proceed proceed, Args...) {
-    detail::throw_no_implementation(proceed.node_->owner->name(), proceed.self_);
+    detail::throw_no_implementation(proceed.node_->owner->name(), receiver(proceed));
   }
 
   static R past_end(Proceed proceed, Args...) {
@@ -255,7 +325,8 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
 
   Impl base_;
   std::vector<Partial> partials_;
-  // What the head of a call gets as its link: its next is head_proceed.
+  // A free function: what the head of a call gets as its link (its next is head_proceed),
+  // and the head's code.
   Node after_head_{&Layered::head_proceed, nullptr, this, ""};
   Node entry_{nullptr, &after_head_, this, ""};
   std::atomic<Impl> head_{nullptr};
@@ -264,6 +335,15 @@ class Layered<Self, R(Args...)> final : public detail::LayeredBase {
   std::unique_ptr<std::atomic<const Node*>[]> latest_;
   // Every chain ever composed, by the refining partials (newest first). Never shrinks.
   mutable std::map<std::vector<std::size_t>, std::unique_ptr<Node[]>> chains_;
+  // A method: the head link of a call (a chain, or one of the two entries below), and the
+  // objects whose chain differs from the decisive one, sorted by address.
+  using Table = std::vector<std::pair<std::uintptr_t, const Node*>>;
+  Node scoped_link_{&Layered::scoped_entry, nullptr, this, ""};
+  Node table_link_{&Layered::table_entry, nullptr, this, ""};
+  std::atomic<const Node*> head_link_{nullptr};
+  std::atomic<const Table*> table_{nullptr};
+  // Every table ever installed. Never shrinks (a running call may use one).
+  std::set<Table> tables_;
 };
 
 // Traits from a function type or a pointer to member function.
