@@ -82,11 +82,17 @@ def test_a_truncated_recording_names_the_file_and_the_byte(tmp_path: Path) -> No
         list(read_recording(cut))
     assert str(raised.value).startswith(f"{cut}: byte ")
     assert "truncated" in str(raised.value)
+    # Replayed up to the cut, with a warning naming the file, the byte and the truncation.
     rules = tmp_path / "robot.layers"
     rules.write_text(BATTERY_RULES, encoding="utf-8")
-    done = replay(cut, rules)
-    assert done.returncode == 2
-    assert f"contextros rules replay: {cut}: byte" in done.stderr
+    done = replay(cut, rules, "--json")
+    assert done.returncode == 0, done.stderr
+    damage = json.loads(done.stdout)["truncated"]
+    assert damage["file"] == str(cut) and 0 < damage["byte"] < len(data) // 2
+    readable = list(read_recording(cut, truncated=lambda damage: None))
+    assert damage["messages_before"] == len(readable)
+    assert f"warning: {cut}: byte {damage['byte']}: " in done.stderr
+    assert "truncated" in done.stderr and "contextros repair" in done.stderr
 
 
 def test_a_file_that_is_not_mcap_is_a_clear_error(tmp_path: Path) -> None:

@@ -13,6 +13,11 @@ from typing import Any
 from contextros.errors import LayerError
 
 USAGE = 2
+DIFFERENT = 1  # `rules replay --strict`: the replay differs from the recording
+INTERRUPTED = 130  # Ctrl-C
+PIPE_CLOSED = 141  # the reader of our output went away (128 + SIGPIPE, as a shell reports)
+# rules.replay.TIME_TOLERANCE (importing it here would import the protocol for every command).
+TIME_TOLERANCE = 0.25
 # The manager's node name (contextros.ros.topics.MANAGER_NODE_NAME, which imports rclpy).
 MANAGER_NODE = "contextros_manager"
 
@@ -38,7 +43,36 @@ def register_offline(commands: Any) -> None:
         metavar="NS",
         help="the manager's namespace in the recording (default /)",
     )
+    replay.add_argument(
+        "--tolerance",
+        type=float,
+        default=TIME_TOLERANCE,
+        metavar="S",
+        help="a replayed state further than this from the recorded one is a difference "
+        f"(default {TIME_TOLERANCE:g} s)",
+    )
+    replay.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 1 when the replay differs from the states recorded live (layers, order, "
+        "time beyond --tolerance)",
+    )
     replay.set_defaults(run=run_replay)
+
+    repair = commands.add_parser(
+        "repair",
+        help="make a recording whose recorder was killed whole again: every readable "
+        "message into a complete MCAP file (as ros2 bag reindex)",
+    )
+    repair.add_argument("recording", type=Path, metavar="IN.mcap")
+    repair.add_argument(
+        "-o",
+        "--output",
+        type=Path,
+        metavar="OUT.mcap",
+        help="where to write the repaired copy (default: IN.repaired.mcap beside it)",
+    )
+    repair.set_defaults(run=run_repair)
 
 
 def register_ros(commands: Any, add_namespace_option: Any) -> None:
@@ -234,12 +268,20 @@ def _dashboard(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
+    return _quietly_interrupted(_run_replay, args)
+
+
+def _run_replay(args: argparse.Namespace) -> int:
     from contextros.cli.ros_arguments import namespace_problem
     from contextros.recording import RecordingError
     from contextros.rules import RuleSet
+    from contextros.rules.replay import compare
 
     if problem := namespace_problem(args.namespace):
         print(f"contextros rules replay: {problem}", file=sys.stderr)
+        return USAGE
+    if not args.tolerance >= 0:
+        print("contextros rules replay: --tolerance must be 0 or more seconds", file=sys.stderr)
         return USAGE
     if args.plot:
         try:
@@ -258,16 +300,18 @@ def run_replay(args: argparse.Namespace) -> int:
         return USAGE
     if replayed is None:
         return USAGE
-    result, recorded, start, end = replayed
+    result, recorded, start, end, damage = replayed
+    differences = compare(result, recorded, rules, start=start, tolerance=args.tolerance)
     if args.plot:
         from contextros.recording.timeline import write_timeline
 
         write_timeline(result, rules, start, end, args.plot)
     if args.json:
-        print(json.dumps(_replay_json(result, recorded, start), indent=2))
+        report = _replay_json(result, recorded, differences, start, damage)
+        print(json.dumps(report, indent=2))
     else:
-        _print_replay(result, recorded, start, end, args)
-    return 0
+        _print_replay(result, recorded, differences, start, end, args)
+    return DIFFERENT if args.strict and differences else 0
 
 
 def _resolve(namespace: str, topic: str) -> str:
@@ -280,25 +324,24 @@ def _resolve(namespace: str, topic: str) -> str:
 
 
 def _replay(args: argparse.Namespace, rules: Any) -> Any:
+    from contextros.language.declarations import declarations_from_files
     from contextros.protocol.manager import RECOVERY_REQUESTER
     from contextros.recording import read_recording
-    from contextros.rules.replay import (
-        RuleReplay,
-        declaration_from_recorded,
-        declarations_from_files,
-    )
+    from contextros.recording.reader import Damage
+    from contextros.rules.replay import RecordedState, RuleReplay, declaration_from_recorded
 
     namespace = args.namespace
     by_topic = {_resolve(namespace, topic): topic for topic in rules.topics()}
     state_topic = _resolve(namespace, "contextros/state")
     status_topic = _resolve(namespace, "contextros/status")
     notes: list[str] = []
+    damages: list[Damage] = []
     # First pass: what the participants declared, the first state, the time span.
-    declarations = declarations_from_files(args.rules)
+    declarations = []
     first_state = None
     start = end = None
     seen: set[str] = set()
-    for item in read_recording(args.recording, note=notes.append):
+    for item in read_recording(args.recording, note=notes.append, truncated=damages.append):
         start = item.time if start is None else start
         end = item.time
         seen.add(item.topic)
@@ -306,6 +349,12 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
             declarations += [declaration_from_recorded(i) for i in item.message.layers]
         elif item.topic == state_topic and first_state is None:
             first_state = item.message
+    for damage in damages:  # a recorder killed: what it wrote before is replayed
+        print(
+            f"warning: {damage}; replaying the {damage.messages} messages before it "
+            f"(`contextros repair {args.recording}` writes a whole copy)",
+            file=sys.stderr,
+        )
     if start is None or end is None:
         print(f"contextros rules replay: {args.recording} holds no messages", file=sys.stderr)
         return None
@@ -313,10 +362,16 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     for topic in missing:
         notes.append(f"no message on {topic} in the recording: the rules reading it never act")
     active = tuple(first_state.active_layers) if first_state is not None else ()
-    replay = RuleReplay(rules, declarations, start=start, active=active)
+    replay = RuleReplay(
+        rules,
+        declarations,
+        layer_files=declarations_from_files(args.rules),
+        start=start,
+        active=active,
+    )
     recorded = []
     seen_first = False
-    for item in read_recording(args.recording):
+    for item in read_recording(args.recording, truncated=lambda damage: None):
         if item.topic in by_topic:
             replay.message(item.time, by_topic[item.topic], item.message)
         elif item.topic == state_topic:
@@ -325,15 +380,18 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
             if not seen_first:
                 seen_first = True  # the state the recording began in: already in place
                 continue
-            recorded.append((item.time, int(state.epoch), tuple(state.active_layers), requester))
+            active = tuple(state.active_layers)
+            recorded.append(RecordedState(item.time, int(state.epoch), active, requester))
             if not requester.startswith("rule ") and requester != RECOVERY_REQUESTER:
-                replay.manual(item.time, tuple(state.active_layers), requester, str(state.reason))
+                replay.manual(item.time, active, requester, str(state.reason))
     result = replay.finish(end)
     result.notes[:0] = notes
-    return result, recorded, start, end
+    return result, recorded, start, end, damages[0] if damages else None
 
 
-def _replay_json(result: Any, recorded: list[Any], start: float) -> dict[str, Any]:
+def _replay_json(
+    result: Any, recorded: list[Any], differences: list[Any], start: float, damage: Any
+) -> dict[str, Any]:
     return {
         "switches": [
             {
@@ -350,16 +408,37 @@ def _replay_json(result: Any, recorded: list[Any], start: float) -> dict[str, An
             for r in result.refusals
         ],
         "recorded": [
-            {"time": round(t - start, 4), "epoch": e, "active": list(a), "requester": who}
-            for t, e, a, who in recorded
+            {
+                "time": round(s.time - start, 4),
+                "epoch": s.epoch,
+                "active": list(s.active),
+                "requester": s.requester,
+            }
+            for s in recorded
         ],
+        "differences": [
+            {"kind": d.kind, "time": round(d.time - start, 4), "text": d.text} for d in differences
+        ],
+        "truncated": None
+        if damage is None
+        else {
+            "file": damage.path,
+            "byte": damage.offset,
+            "what": damage.what,
+            "messages_before": damage.messages,
+        },
         "first_inputs": {topic: round(t - start, 4) for topic, t in result.first_inputs.items()},
         "notes": result.notes,
     }
 
 
 def _print_replay(
-    result: Any, recorded: list[Any], start: float, end: float, args: argparse.Namespace
+    result: Any,
+    recorded: list[Any],
+    differences: list[Any],
+    start: float,
+    end: float,
+    args: argparse.Namespace,
 ) -> None:
     for note in result.notes:
         print(f"note: {note}", file=sys.stderr)
@@ -371,11 +450,74 @@ def _print_replay(
     events += [(r.time, f"rule {r.rule} could not {r.asked}: {r.message}") for r in result.refusals]
     for at, text in sorted(events, key=lambda event: event[0]):
         print(f"{at - start:9.3f} s  {text}")
-    by_rules = sum(1 for *_, who in recorded if who.startswith("rule "))
+    by_rules = sum(1 for s in recorded if s.requester.startswith("rule "))
     made = sum(1 for s in result.switches if s.requester.startswith("rule "))
     print(f"{made} switches by these rules; the recording has {by_rules} made by the live rules")
+    states = f"{len(recorded)} state{'s' if len(recorded) != 1 else ''} recorded live"
+    if differences:
+        count = len(differences)
+        print(f"{count} difference{'s' if count != 1 else ''} from the {states}:")
+        for difference in differences:
+            print(f"  {difference.kind}: {difference.text}")
+    else:
+        print(
+            f"no difference from the {states}: the same layers in the same order, "
+            f"each within {args.tolerance:g} s"
+        )
     if args.plot:
         print(f"timeline: {args.plot}")
+
+
+# -- repair ---------------------------------------------------------------------------------
+
+
+def run_repair(args: argparse.Namespace) -> int:
+    return _quietly_interrupted(_run_repair, args)
+
+
+def _run_repair(args: argparse.Namespace) -> int:
+    from contextros.recording import RecordingError
+    from contextros.recording.repair import repair_recording
+
+    source: Path = args.recording
+    output: Path = args.output or source.with_name(f"{source.stem}.repaired.mcap")
+    try:
+        repair = repair_recording(source, output)
+    except RecordingError as error:
+        print(f"contextros repair: {error}", file=sys.stderr)
+        return USAGE
+    if repair.damage is not None:
+        print(f"{repair.damage}: copied what came before it", file=sys.stderr)
+    elif repair.complete:
+        print(f"{source} was complete already: copied as it was", file=sys.stderr)
+    span = (
+        f", {repair.end - repair.start:.1f} s"
+        if repair.start is not None and repair.end is not None
+        else ""
+    )
+    topics = ", ".join(f"{topic}: {n}" for topic, n in sorted(repair.topics.items()))
+    print(
+        f"repaired {repair.messages} messages{span} to {output}"
+        + (f" ({topics})" if topics else "")
+    )
+    return 0
+
+
+def _quietly_interrupted(run: Any, args: argparse.Namespace) -> int:
+    """`run(args)`, ending quietly on Ctrl-C (130) and when our reader closes the pipe
+    (`| head`: 141), as the docs say."""
+    try:
+        status: int = run(args)
+        sys.stdout.flush()
+    except KeyboardInterrupt:
+        return INTERRUPTED
+    except BrokenPipeError:
+        # Nothing more can be written; keep Python from complaining at exit.
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+        return PIPE_CLOSED
+    return status
 
 
 def _missing(command: str, error: ImportError) -> int:

@@ -1,9 +1,11 @@
 """Reading a ROS 2 MCAP file, record by record, decoded without ROS.
 
 The file is read sequentially (it need not have a summary section), so a damaged one still
-gives the messages before the damage, and the error says at which byte it broke. Messages
-that cannot be decoded here (a schema that is not `ros2msg` with CDR, such as an IDL or
-JSON one) are skipped, with one note per type.
+gives the records before the damage, and the error says at which byte it broke. A file
+that merely ends early (its recorder was killed: the last chunk cut short, or no summary)
+is *truncated*: a reader that accepts it (`truncated=`) gets every message before the cut.
+Messages that cannot be decoded here (a schema that is not `ros2msg` with CDR, such as an
+IDL or JSON one) are skipped, with one note per type.
 """
 
 from __future__ import annotations
@@ -15,9 +17,30 @@ from typing import Any, BinaryIO
 
 from contextros.errors import LayerError
 
+MAGIC = b"\x89MCAP0\r\n"
+_RECORD_HEADER = 9  # opcode (1 byte) and length (8 bytes)
+
+
+@dataclass(frozen=True)
+class Damage:
+    """Where a recording stops being readable, and why."""
+
+    path: str
+    offset: int  # the byte where the unreadable part begins
+    what: str
+    truncated: bool  # it only ends early (a recorder killed), nothing in it is wrong
+    messages: int = 0  # messages read before it
+
+    def __str__(self) -> str:
+        return f"{self.path}: byte {self.offset}: {self.what}"
+
 
 class RecordingError(LayerError):
     """A recording that cannot be read: the message names the file and where it broke."""
+
+    def __init__(self, message: str, damage: Damage | None = None) -> None:
+        super().__init__(message)
+        self.damage = damage
 
 
 @dataclass(frozen=True)
@@ -28,16 +51,54 @@ class RecordedMessage:
     message: Any  # decoded: fields as attributes, as on a message object
 
 
+def open_recording(path: str | os.PathLike[str]) -> BinaryIO:
+    name = os.fspath(path)
+    try:
+        return open(name, "rb")  # the caller closes it
+    except OSError as error:
+        raise RecordingError(f"{name}: cannot open the recording: {error.strerror}") from None
+
+
+def mcap_records(stream: BinaryIO, name: str) -> Iterator[Any]:
+    """Every record of an MCAP stream in file order, a chunk's records in place of the
+    chunk; RecordingError (with its `damage`) where the file stops being readable."""
+    from mcap.records import Chunk
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=1 << 30)
+    records = reader.records
+    size = os.fstat(stream.fileno()).st_size
+    good = 0  # the end of the last whole record: where any damage begins
+    while True:
+        try:
+            record = next(records)
+            if stream.tell() >= size and _cut_short(stream, good):
+                raise EOFError("the last record is cut short")  # the library reads short
+            inside = breakup_chunk(record, validate_crc=True) if isinstance(record, Chunk) else ()
+        except StopIteration:
+            return
+        except Exception as error:  # whatever a damaged file makes the library raise
+            damage = _damage(name, stream, good, error)
+            raise RecordingError(str(damage), damage) from None
+        good = stream.tell()
+        if isinstance(record, Chunk):
+            yield from inside
+        else:
+            yield record
+
+
 def read_recording(
     path: str | os.PathLike[str],
     topics: Collection[str] | None = None,
     note: Callable[[str], object] = lambda text: None,
+    truncated: Callable[[Damage], object] | None = None,
 ) -> Iterator[RecordedMessage]:
     """The messages of `path` (of `topics` only, if given) in file order. RecordingError
-    when the file is not MCAP, is damaged or ends early; `note` hears of skipped types."""
+    when the file is not MCAP, is damaged or ends early; with `truncated`, a file that only
+    ends early gives its messages and then `truncated` hears where it ended. `note` hears
+    of skipped types."""
     try:
         from mcap.records import Channel, Message, Schema
-        from mcap.stream_reader import StreamReader
         from mcap_ros2.decoder import DecoderFactory
     except ImportError as error:
         raise RecordingError(
@@ -45,26 +106,29 @@ def read_recording(
             "pip install 'contextros[observe]'"
         ) from None
     name = os.fspath(path)
-    try:
-        stream: BinaryIO = open(name, "rb")  # noqa: SIM115 - closed below, after the loop
-    except OSError as error:
-        raise RecordingError(f"{name}: cannot open the recording: {error.strerror}") from None
     factory = DecoderFactory()
     schemas: dict[int, Any] = {}
     channels: dict[int, Any] = {}
     decoders: dict[int, Callable[[bytes], Any] | None] = {}
     skipped: set[str] = set()
     count = 0
-    with stream:
-        reader = StreamReader(stream, validate_crcs=True, record_size_limit=1 << 30)
-        records = reader.records
+    with open_recording(name) as stream:
+        records = mcap_records(stream, name)
         while True:
             try:
                 record = next(records)
             except StopIteration:
                 return
-            except Exception as error:  # whatever a damaged file makes the library raise
-                raise RecordingError(_broken(name, stream, count, error)) from None
+            except RecordingError as error:
+                damage = error.damage
+                assert damage is not None
+                damage = Damage(damage.path, damage.offset, damage.what, damage.truncated, count)
+                if truncated is not None and damage.truncated:
+                    truncated(damage)
+                    return
+                raise RecordingError(
+                    f"{damage}; {count} messages were read before it", damage
+                ) from None
             if isinstance(record, Schema):
                 schemas[record.id] = record
             elif isinstance(record, Channel):
@@ -113,14 +177,35 @@ def _decoder(factory: Any, channel: Any, schema: Any) -> Callable[[bytes], Any] 
     return decoder
 
 
-def _broken(name: str, stream: BinaryIO, count: int, error: Exception) -> str:
-    where = f"byte {stream.tell()}"
-    kind = type(error).__name__
-    at_end = stream.tell() >= os.fstat(stream.fileno()).st_size
-    if kind in ("EndOfFile", "EOFError") or (at_end and kind != "InvalidMagic"):
-        what = "the file ends in the middle of a record (truncated: was the recorder killed?)"
-    elif kind == "InvalidMagic":
-        what = "not an MCAP file (no MCAP magic bytes)"
+def _cut_short(stream: BinaryIO, start: int) -> bool:
+    """Whether the record at `start` claims more bytes than the file has."""
+    here = stream.tell()
+    stream.seek(start)
+    header = stream.read(_RECORD_HEADER)
+    stream.seek(here)
+    length = int.from_bytes(header[1:], "little")
+    return len(header) < _RECORD_HEADER or start + _RECORD_HEADER + length > here
+
+
+def _damage(name: str, stream: BinaryIO, good: int, error: Exception) -> Damage:
+    """What is wrong at `good` (the end of the last whole record): read again from there."""
+    size = os.fstat(stream.fileno()).st_size
+    stream.seek(0)
+    start = stream.read(len(MAGIC))
+    if start != MAGIC[: len(start)]:
+        return Damage(name, 0, "not an MCAP file (no MCAP magic bytes)", truncated=False)
+    if size <= len(MAGIC):
+        what = "the file is empty" if size == 0 else "the file ends in its magic bytes"
+        return Damage(name, size, f"{what} (truncated: was the recorder killed?)", True)
+    good = max(good, len(MAGIC))
+    stream.seek(good)
+    header = stream.read(_RECORD_HEADER)
+    end = good + _RECORD_HEADER + int.from_bytes(header[1:], "little")
+    if good >= size:
+        what = "the file ends after its last whole record, without its summary"
+    elif len(header) < _RECORD_HEADER or end > size:
+        what = "the file ends in the middle of a record"
     else:
-        what = f"{kind}: {error}"
-    return f"{name}: {where}: {what}; {count} messages were read before it"
+        kind = type(error).__name__
+        return Damage(name, good, f"damaged record ({kind}: {error})", truncated=False)
+    return Damage(name, good, f"{what} (truncated: was the recorder killed?)", truncated=True)

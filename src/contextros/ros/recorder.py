@@ -3,7 +3,9 @@
 Each topic is subscribed once the ROS graph shows its type, raw (the serialized CDR bytes
 are written as they arrived, as rosbag2 does), with its message definition as a `ros2msg`
 schema, so `ros2 bag`, Foxglove and `contextros rules replay` read the file. Log times are
-the recorder's receive times (wall clock, nanoseconds), as in rosbag2.
+the recorder's receive times (wall clock, nanoseconds), as in rosbag2. The file is written
+by `RecordingWriter`: killed without warning, the recorder loses at most the messages of
+its last CHUNK_PERIOD (and `contextros repair` makes the file whole again).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from contextros.recording.definitions import DefinitionError, message_definition
+from contextros.recording.writer import CHUNK_PERIOD, RecordingWriter
 from contextros.ros.message_types import message_class
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
@@ -35,8 +38,6 @@ PROTOCOL_TOPICS: dict[str, QoSProfile] = {
     STATUS_TOPIC: STATUS_QOS,
     PROPOSAL_TOPIC: PROPOSAL_QOS,
 }
-# Small chunks: a recorder killed without warning loses at most this much.
-CHUNK_SIZE = 64 * 1024
 
 
 class Recorder:
@@ -50,14 +51,11 @@ class Recorder:
         *,
         discovery_period: float = 0.1,
     ) -> None:
-        from mcap.writer import Writer
-
         self.node = node
         self.output = output
         self._unbound = {_resolved(node, t): qos for t, qos in topics.items()}
         self._stream: BinaryIO = output.open("wb")
-        self._writer = Writer(self._stream, chunk_size=CHUNK_SIZE, compression=_compression())
-        self._writer.start(profile="ros2", library="contextros record")
+        self._writer = RecordingWriter(self._stream)
         self._schemas: dict[str, int] = {}
         self._refused: dict[str, str] = {}  # topic -> the type it was refused with
         self._subscriptions: list[Any] = []
@@ -65,6 +63,7 @@ class Recorder:
         self._sequence = 0
         self._finished = False
         self._discovery = node.create_timer(discovery_period, self._discover)
+        self._chunks = node.create_timer(CHUNK_PERIOD, self._close_chunk)
         self._discover()
 
     @property
@@ -91,7 +90,7 @@ class Recorder:
         except (ValueError, DefinitionError) as error:
             return self._refuse(topic, type_name, str(error))
         del self._unbound[topic]
-        channel = self._writer.register_channel(topic, "cdr", schema)
+        channel = self._writer.add_channel(topic, "cdr", schema)
         self._subscriptions.append(
             self.node.create_subscription(
                 cls, topic, lambda data, c=channel, t=topic: self._write(c, t, data), qos, raw=True
@@ -108,9 +107,7 @@ class Recorder:
     def _schema(self, type_name: str) -> int:
         if type_name not in self._schemas:
             definition = message_definition(type_name).encode()
-            self._schemas[type_name] = self._writer.register_schema(
-                type_name, "ros2msg", definition
-            )
+            self._schemas[type_name] = self._writer.add_schema(type_name, "ros2msg", definition)
         return self._schemas[type_name]
 
     def _write(self, channel: int, topic: str, data: bytes) -> None:
@@ -121,13 +118,17 @@ class Recorder:
         self._writer.add_message(channel, now, data, now, self._sequence)
         self.counts[topic] += 1
 
+    def _close_chunk(self) -> None:
+        if not self._finished:
+            self._writer.close_chunk()
+
     def finish(self) -> None:
         """Write the summary and close the file (a file without it is still readable)."""
         if self._finished:
             return
         self._finished = True
         try:
-            self._writer.finish()  # type: ignore[no-untyped-call]
+            self._writer.finish()
         finally:
             self._stream.close()
 
@@ -142,13 +143,3 @@ def _resolved(node: Node, topic: str) -> str:
     except Exception as error:  # rclpy raises its RCLError, not exported as a type
         reason = str(error).split(", at ")[0].removeprefix("failed to resolve name: ")
         raise TopicNameError(f"topic {topic!r}: {reason}") from None
-
-
-def _compression() -> Any:
-    from mcap.writer import CompressionType
-
-    try:
-        import zstandard  # noqa: F401 - only whether it is there
-    except ImportError:
-        return CompressionType.NONE
-    return CompressionType.ZSTD

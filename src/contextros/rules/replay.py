@@ -78,6 +78,7 @@ class RuleReplay:
         rules: RuleSet,
         declarations: Iterable[LayerDeclaration] = (),
         *,
+        layer_files: Iterable[LayerDeclaration] = (),
         start: float,
         active: Sequence[str] = (),
         tick_period: float = MANAGER_TICK,
@@ -88,14 +89,21 @@ class RuleReplay:
         self._tick_period = tick_period
         self._next_tick = start
         self._now = start
-        declared = merge_declarations(
+        layer_files = tuple(layer_files)
+        # Who implemented what is not recorded: every layer named anywhere counts as
+        # implemented, with the relations the participants declared (recorded statuses);
+        # the layer files' relations join them as they join the live manager's
+        # (`ManagerSettings.layer_files`), so both compose the same way.
+        implemented = merge_declarations(
             [
                 *declarations,
+                *(LayerDeclaration(d.name) for d in layer_files),
                 *(LayerDeclaration(n) for r in rules.rules for n in r.targets()),
                 *(LayerDeclaration(n) for n in active),  # someone implemented them
             ]
         )
         settings = ManagerSettings(
+            layer_files=layer_files,
             manager_id="replay",
             liveness_timeout=math.inf,
             recovery_window=0.0,
@@ -115,7 +123,7 @@ class RuleReplay:
         self._next_request = 0
         # One participant that implements every layer: validation sees all declarations.
         everything = ParticipantReport(
-            node="/replay", incarnation="replay", layers=tuple(declared.values())
+            node="/replay", incarnation="replay", layers=tuple(implemented.values())
         )
         self.protocol.receive_status(everything, start)
         self._run(self.protocol.tick(start))
@@ -226,28 +234,6 @@ class RuleReplay:
                 self.result.signals.setdefault(text, []).append((time, float(value)))
 
 
-def declarations_from_files(paths: Iterable[str]) -> list[LayerDeclaration]:
-    """The layers and relations that layer files declare (groups, excludes, requires,
-    after), as the participants built from them would register them."""
-    from contextros.language.flavours import parse_files
-
-    parsed, _ = parse_files(paths)
-    found: list[LayerDeclaration] = []
-    for _, _, layer_file in parsed:
-        for group in layer_file.groups:
-            found += [LayerDeclaration(m.name, group=group.name) for m in group.members]
-        for layer in layer_file.layers:
-            found.append(
-                LayerDeclaration(
-                    layer.name,
-                    excludes=frozenset(r.name for r in layer.excludes),
-                    requires=frozenset(r.name for r in layer.requires),
-                    after=frozenset(r.name for r in layer.after),
-                )
-            )
-    return found
-
-
 def declaration_from_recorded(info: Any) -> LayerDeclaration:
     """A LayerInfo of a recorded participant status (decoded, fields as attributes)."""
     return LayerDeclaration(
@@ -257,3 +243,138 @@ def declaration_from_recorded(info: Any) -> LayerDeclaration:
         group=str(info.group),
         after=frozenset(map(str, info.after)),
     )
+
+
+# -- the replay against the recording -----------------------------------------------------
+
+# How far apart a replayed state and the recorded one may be (the manager's timer phase,
+# the acknowledgements, the recorder's receive times): beyond it, a difference.
+TIME_TOLERANCE = 0.25
+
+
+@dataclass(frozen=True)
+class RecordedState:
+    """A state the live manager published, as recorded on `contextros/state`."""
+
+    time: float
+    epoch: int
+    active: tuple[str, ...]
+    requester: str
+
+
+@dataclass(frozen=True)
+class Difference:
+    """Where the replay and the recording disagree. `kind`: 'layers' (other layers),
+    'order' (the same layers composed in another order), 'time' (apart by more than the
+    tolerance), 'missing' (a recorded state the replay did not make), 'extra' (a replayed
+    state the recording does not have). `text` gives times since `start` of `compare`."""
+
+    kind: str
+    time: float
+    live: RecordedState | None
+    replayed: Switch | None
+    text: str
+
+
+def compare(
+    result: ReplayResult,
+    recorded: Sequence[RecordedState],
+    rules: RuleSet,
+    *,
+    start: float,
+    tolerance: float = TIME_TOLERANCE,
+) -> list[Difference]:
+    """Every difference between the replayed states and the recorded ones, in time order.
+    States are paired in sequence by their set of layers (difflib: the longest runs that
+    agree first); a paired state may still differ in order or time. A live switch that
+    the replay makes late because the recording lacks its rule's first readings is not a
+    time difference (a note in `result.notes` says so)."""
+    from difflib import SequenceMatcher
+
+    replayed = [s for s in result.switches if s.requester != REPLAY_REQUESTER]
+    matcher = SequenceMatcher(
+        None,
+        [tuple(sorted(s.active)) for s in recorded],
+        [tuple(sorted(s.active)) for s in replayed],
+        autojunk=False,
+    )
+    found: list[Difference] = []
+    for tag, live_from, live_to, replay_from, replay_to in matcher.get_opcodes():
+        lives = recorded[live_from:live_to]
+        replays = replayed[replay_from:replay_to]
+        for live, switch in zip(lives, replays, strict=False):
+            if tag == "equal":
+                found += _paired(live, switch, result, rules, start, tolerance)
+            else:
+                text = (
+                    f"live {_state(live.active)} at {live.time - start:.3f} s ({live.requester}), "
+                    f"the replay {_state(switch.active)} at {switch.time - start:.3f} s "
+                    f"({switch.requester})"
+                )
+                found.append(Difference("layers", live.time, live, switch, text))
+        for live in lives[len(replays) :]:
+            text = (
+                f"live {_state(live.active)} at {live.time - start:.3f} s ({live.requester}): "
+                "not in the replay"
+            )
+            found.append(Difference("missing", live.time, live, None, text))
+        for switch in replays[len(lives) :]:
+            text = (
+                f"replay {_state(switch.active)} at {switch.time - start:.3f} s "
+                f"({switch.requester}): not in the recording"
+            )
+            found.append(Difference("extra", switch.time, None, switch, text))
+    return sorted(found, key=lambda difference: difference.time)
+
+
+def _paired(
+    live: RecordedState,
+    switch: Switch,
+    result: ReplayResult,
+    rules: RuleSet,
+    start: float,
+    tolerance: float,
+) -> list[Difference]:
+    found = []
+    at = live.time - start
+    if live.active != switch.active:
+        text = (
+            f"live composed {_state(live.active)} at {at:.3f} s ({live.requester}), "
+            f"the replay {_state(switch.active)}"
+        )
+        found.append(Difference("order", live.time, live, switch, text))
+    apart = switch.time - live.time
+    if abs(apart) > tolerance and not _unrecorded_cause(live, apart, result, rules, start):
+        text = (
+            f"{_state(live.active)} live at {at:.3f} s ({live.requester}), in the replay "
+            f"{abs(apart):.3f} s {'later' if apart > 0 else 'earlier'} (tolerance {tolerance:g} s)"
+        )
+        found.append(Difference("time", live.time, live, switch, text))
+    return found
+
+
+def _unrecorded_cause(
+    live: RecordedState, apart: float, result: ReplayResult, rules: RuleSet, start: float
+) -> bool:
+    """Whether the replay is late only because the recording lacks the readings that
+    caused the live switch: it came before each topic of its rule had a recorded reading
+    held for the rule's hold time (the recorder subscribes to a topic once it sees it on
+    the graph, possibly after the manager). Then a note says so."""
+    rule = next((r for r in rules.rules if f"rule {r.name}" == live.requester), None)
+    if apart <= 0 or rule is None:
+        return False
+    firsts = [result.first_inputs.get(ref.topic) for ref in rule.fields]
+    known = [first for first in firsts if first is not None]
+    if not known or len(known) < len(firsts) or live.time >= max(known) + rule.hold:
+        return False
+    result.notes.append(
+        f"{_state(live.active)} at {live.time - start:.3f} s came {apart:.3f} s later in the "
+        f"replay: the recording has no reading of "
+        f"{', '.join(dict.fromkeys(ref.topic for ref in rule.fields))} from before "
+        f"{max(known) - start:.3f} s, the manager had (the recorder subscribed after it)"
+    )
+    return True
+
+
+def _state(active: Sequence[str]) -> str:
+    return f"[{', '.join(active) or 'none'}]"
