@@ -187,7 +187,8 @@ def _write(
     if original:
         text = _splice(original, text, set(fresh), full)
     head, rest = text.split("\n## ", 1) if "\n## " in text else (text, None)
-    head = regressions.head_with(head, {titles[name] for name in fresh}, found)
+    previous = _sections(original)[0] if original else ""
+    head = regressions.head_with(head, previous, {titles[name] for name in fresh}, found)
     text = head.rstrip() + "\n" + ("\n## " + rest if rest is not None else "")
     target.parent.mkdir(parents=True, exist_ok=True)
     target.write_text(text)

@@ -137,20 +137,13 @@ def regressions(section: str, old: str, new: str) -> list[Regression]:
     return worse
 
 
-def head_with(head: str, measured: set[str], found: list[Regression]) -> str:
-    """The page's head with its REGRESSED lines for the `measured` sections (titles) replaced
-    by `found`; the lines of sections not measured in this run stay."""
-    lines = head.rstrip("\n").splitlines()
+def head_with(head: str, previous: str, measured: set[str], found: list[Regression]) -> str:
+    """`head` (the page's new head) with the REGRESSED lines of the `previous` one for the
+    sections not measured in this run, then `found` for the `measured` ones (titles)."""
+    lines = [line for line in head.rstrip("\n").splitlines() if not line.startswith(MARK)]
     kept = [
         line
-        for line in lines
-        if not (
-            line.startswith(MARK) and any(line.startswith(f"{MARK} in {t}: ") for t in measured)
-        )
+        for line in previous.splitlines()
+        if line.startswith(MARK) and not any(line.startswith(f"{MARK} in {t}: ") for t in measured)
     ]
-    fresh = [regression.line() for regression in found]
-    if not fresh:
-        return "\n".join(kept) + "\n"
-    marks = [at for at, line in enumerate(kept) if line.startswith(MARK)]
-    at = marks[-1] + 1 if marks else len(kept)
-    return "\n".join(kept[:at] + fresh + kept[at:]) + "\n"
+    return "\n".join(lines + kept + [regression.line() for regression in found]) + "\n"

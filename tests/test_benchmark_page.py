@@ -103,7 +103,7 @@ def test_a_failing_section_is_reported_and_the_others_are_written(
     page = tmp_path / "benchmarks.md"
     old_rows = "| plain | 10 | 1.00 | |\n"
     page.write_text(
-        "# Benchmarks\n\nold head\n\n"
+        "# Benchmarks\n\nold head\n- REGRESSED in Fake dashboard: switch, x plain: 1 -> 2\n\n"
         + _section("Fake first", TABLE + old_rows)
         + "\n"
         + _section("Fake dashboard", TABLE + "| switch | 5 | 1.00 | |\n")
@@ -124,6 +124,7 @@ def test_a_failing_section_is_reported_and_the_others_are_written(
     assert "| plain | 11 |" in text and "| plain | 12 |" in text
     assert "| switch | 5 | 1.00 | |" in text  # the failed section keeps its results
     assert "Not measured in this run" in text and "dashboard (ModuleNotFoundError" in text
+    assert "- REGRESSED in Fake dashboard: switch" in text  # its earlier list stays too
     assert "dashboard: ModuleNotFoundError: No module named 'playwright'" in capsys.readouterr().err
 
 
