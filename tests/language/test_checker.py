@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import textwrap
+from pathlib import Path
 
 import pytest
 
 from contextros.language import LayerSyntaxError, check_file, check_source
-from contextros.language.checker import checked
+from contextros.language.checker import check_files, checked
 from tests.language.conftest import FIXTURES
 
 Found = tuple[str, int, int, str]
@@ -686,3 +687,30 @@ def test_a_misspelt_message_type_of_an_installed_package_is_an_error() -> None:
     # A package not installed where `check` runs (a laptop): its fields wait for run time.
     laptop = check_source(source.replace("sensor_msgs", "robot_msgs"), "t.layers", None, installed)
     assert [(d.severity.value, d.line) for d in laptop] == [("note", 2)]
+
+
+def test_check_files_finds_what_check_finds_in_each_file_and_what_only_the_files_together_have(
+    tmp_path: Path,
+) -> None:
+    """What the manager runs on its --layers files: each file's diagnostics as `contextros
+    check` gives them (a layer error outside the rules too), then the errors of the files
+    together (a rule name declared in two), file by file in the order given."""
+    first = tmp_path / "z_first.layers"
+    first.write_text(
+        "layer A requires Nope:\n    def f(): ...\nrule Low: A while battery.percentage < 20\n",
+        encoding="utf-8",
+    )
+    second = tmp_path / "a_second.layers"
+    second.write_text(
+        "rule B: Night wile x.y > 1\nrule Low: Night while x.y < 1\n", encoding="utf-8"
+    )
+    found = check_files([first, second])
+    assert found[: len(check_file(first))] == check_file(first)
+    assert [(Path(d.path).name, d.line, d.severity.value) for d in found if d.is_error] == [
+        ("z_first.layers", 1, "error"),
+        ("a_second.layers", 1, "error"),
+        ("a_second.layers", 2, "error"),
+    ]
+    assert "unknown layer 'Nope'" in found[0].message
+    assert f"rule 'Low' is already declared at {first.name}:3" in found[-1].message
+    assert check_files([second]) == check_file(second), "alone, the same as `check`"

@@ -200,7 +200,9 @@ def test_a_type_other_than_the_declared_one_names_both_and_the_declaration() -> 
 
 
 def contradictions(*rules: tuple[str, str]) -> list[str]:
-    relations: dict[str, tuple[frozenset[str], frozenset[str]]] = {n: (frozenset({"location"}), frozenset()) for n in ("Indoor", "Outdoor")}
+    relations: dict[str, tuple[frozenset[str], frozenset[str]]] = {
+        n: (frozenset({"location"}), frozenset()) for n in ("Indoor", "Outdoor")
+    }
     found = RuleSet.from_rules([Rule(name, text) for name, text in rules]).check(relations)
     return [d.message for d in found]
 
@@ -257,29 +259,7 @@ def test_hysteresis_under_not_widens_the_other_way_as_the_engine_evaluates_it() 
     )
 
 
-# -- the manager's checks: what `contextros check` refuses ---------------------------------
-
-
-def test_from_files_refuses_what_check_refuses_listing_every_error_in_file_order(
-    tmp_path: Path,
-) -> None:
-    """A layer error outside the rules (an unknown layer) stops the rules too, and every
-    error of every file is listed, in the order the files were given."""
-    second = tmp_path / "a_second.layers"
-    second.write_text("rule B: Night wile x.y > 1\nrule C: Night while 3 < 4\n", encoding="utf-8")
-    first = tmp_path / "z_first.layers"
-    first.write_text(
-        "layer A requires Nope:\n    def f(): ...\nrule A: Night while battery.percentage < 20\n",
-        encoding="utf-8",
-    )
-    with pytest.raises(LayerSyntaxError) as raised:
-        RuleSet.from_files([first, second])
-    assert [(Path(d.path).name, d.line) for d in raised.value.diagnostics] == [
-        ("z_first.layers", 1),
-        ("a_second.layers", 1),
-        ("a_second.layers", 2),
-    ]
-    assert "unknown layer 'Nope'" in raised.value.diagnostics[0].message
+# -- topic types that do not exist ----------------------------------------------------------
 
 
 def test_a_misspelt_declared_type_is_an_error_an_uninstalled_package_a_note() -> None:

@@ -257,14 +257,21 @@ def run_manager(args: argparse.Namespace) -> int:
         import dataclasses
 
         from contextros.bindings import Bindings
+        from contextros.language.checker import check_files
         from contextros.language.declarations import declarations_from_files
         from contextros.language.diagnostics import LayerLanguageError
         from contextros.ros.message_types import installed_message_type
         from contextros.rules import RuleSet
 
+        # Refused: what `contextros check` refuses in each file, and what the files together
+        # have (docs/rules.md), every error listed.
+        found = check_files(args.layer_files, message_types=installed_message_type)
+        errors = "\n".join(d.render() for d in found if d.is_error)
+        if errors:
+            print(f"contextros manager: the layer files have errors:\n{errors}", file=sys.stderr)
+            return USAGE
         try:
-            # What `contextros check` refuses, with the fields of the declared topics too.
-            rules = RuleSet.from_files(args.layer_files, message_types=installed_message_type)
+            rules = RuleSet.from_files(args.layer_files)
             bindings = Bindings.from_files(args.layer_files)
             # Their layers' relations (`after` too) join the participants' declarations,
             # as in `rules replay`.

@@ -9,6 +9,7 @@ activate.
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable, Sequence
 from itertools import combinations
 from pathlib import Path
@@ -89,11 +90,36 @@ def check_file(
     path: str | Path, language: str | None = None, message_types: MessageTypes | None = None
 ) -> list[Diagnostic]:
     """`check_source` for a file on disk (an unreadable file is an error at 1:1)."""
-    try:
-        source = read_source(path)
-    except (OSError, UnicodeDecodeError) as error:
-        return unreadable(path, error)
-    return check_source(source, str(path), language, message_types)
+    return check_files([path], language, message_types)
+
+
+def check_files(
+    paths: Iterable[str | os.PathLike[str]],
+    language: str | None = None,
+    message_types: MessageTypes | None = None,
+) -> list[Diagnostic]:
+    """Every diagnostic of layer files a Layer manager runs together: each file's, as
+    `check_file` finds them, then the errors only the files together have (a rule name or
+    a topic's type declared in two of them, a rule's fields against another file's topic
+    declaration). File by file in the order given, each sorted by position."""
+    from contextros.rules.ruleset import RuleSet
+
+    by_file: dict[str, list[Diagnostic]] = {}
+    parsed: list[tuple[str, str, LayerFile]] = []
+    for path in paths:
+        name = os.fspath(path)
+        try:
+            source = read_source(name)
+        except (OSError, UnicodeDecodeError) as error:
+            by_file[name] = unreadable(name, error)
+            continue
+        layer_file, found = parse_with_diagnostics(source, name, language)
+        by_file[name] = [*found, *check(layer_file, message_types)]
+        parsed.append((name, source, layer_file))
+    for diagnostic in RuleSet.from_parsed(parsed).check(message_types=message_types):
+        if diagnostic.is_error:  # (warnings and notes: each file's own say the same)
+            by_file.setdefault(diagnostic.path, []).append(diagnostic)
+    return [d for found in by_file.values() for d in sorted_diagnostics(found)]
 
 
 def checked(
@@ -199,9 +225,7 @@ class _Checker:
             for name in self.layers
         }
         rules = RuleSet(self.file.rules, {self.file.path: self.file.source}, self.file.topics)
-        self.sink.items += rules.check(relations)
-        if self.message_types is not None:
-            self.sink.items += rules.check_declared_fields(self.message_types)
+        self.sink.items += rules.check(relations, self.message_types)
 
     # -- declarations and relations ---------------------------------------------------
 

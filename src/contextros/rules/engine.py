@@ -24,6 +24,7 @@ from contextros.language.rules import (
     condition_text,
     relaxed,
 )
+from contextros.rules.contradictions import Relations as Relations  # (firings.py)
 from contextros.rules.ruleset import RuleSet
 
 _OPERATORS: dict[str, Callable[[Any, Any], bool]] = {
@@ -291,9 +292,6 @@ class RuleEngine:
                 if firing is not None:
                     firings.append(firing)
         return firings
-
-
-Relations = Mapping[str, tuple[frozenset[str], frozenset[str]]]  # layer -> (groups, excludes)
 
 
 def resolve(firings: list[Firing], relations: Relations) -> tuple[list[Firing], list[Firing]]:

@@ -7,17 +7,15 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from contextros.language.checker import check as check_layer_file
 from contextros.language.diagnostics import (
     Diagnostic,
     DiagnosticSink,
     LayerSyntaxError,
-    sorted_diagnostics,
+    Severity,
 )
 from contextros.language.flavours import parse_files
 from contextros.language.positions import Position, Ref
 from contextros.language.rules import (
-    BoolOp,
     Comparison,
     Condition,
     FieldRef,
@@ -25,9 +23,10 @@ from contextros.language.rules import (
     Not,
     RuleDecl,
     parse_rule,
-    relaxed,
 )
+from contextros.language.syntax import LayerFile
 from contextros.language.topics import TopicDecl
+from contextros.rules.contradictions import Relations, contradiction
 
 # What a message field is, as far as a condition cares: "number", "string", "bool",
 # "message" (has fields of its own), "array" (not comparable), or None (no such field).
@@ -83,30 +82,29 @@ class RuleSet:
         language: str | None = None,
         message_types: MessageTypes | None = None,
     ) -> RuleSet:
-        """The rules of layer files (either flavour). Each file is checked as `contextros
-        check` checks it (with `message_types`, the declared topics' fields too), then the
-        files together (a rule name or a topic's type declared twice across them);
-        LayerSyntaxError lists every error, file by file in the order given."""
+        """The rules of layer files (either flavour), checked together (`check`, with
+        `message_types` the declared topics' fields too); LayerSyntaxError lists every
+        error. The rest of each file (layers, methods, bindings) is the checker's:
+        `contextros.language.checker.check_files` runs every check, as the manager does."""
+        parsed, errors = parse_files(paths, language)
+        result = cls.from_parsed(parsed)
+        errors += [d for d in result.check(message_types=message_types) if d.is_error]
+        if errors:
+            raise LayerSyntaxError(errors)
+        return result
+
+    @classmethod
+    def from_parsed(cls, parsed: Iterable[tuple[str, str, LayerFile]]) -> RuleSet:
+        """The rules and topic declarations of parsed layer files ((name, source, tree)
+        each), merged in their order."""
         rules: list[RuleDecl] = []
         topics: list[TopicDecl] = []
         sources: dict[str, str] = {}
-        parsed, errors = parse_files(paths, language)
         for name, source, layer_file in parsed:
-            errors += [d for d in check_layer_file(layer_file, message_types) if d.is_error]
             rules += layer_file.rules
             topics += layer_file.topics
             sources[name] = source
-        result = cls(rules, sources, topics)
-        together = result.check()
-        if message_types is not None:
-            together += result.check_declared_fields(message_types)
-        errors += [d for d in together if d.is_error]
-        if errors:
-            order = {name: index for index, name in enumerate(sources)}
-            errors = sorted_diagnostics(errors)  # one of each (a file's own: found twice)
-            errors.sort(key=lambda d: order.get(d.path, -1))  # stable: by line within a file
-            raise LayerSyntaxError(errors)
-        return result
+        return cls(rules, sources, topics)
 
     @classmethod
     def from_rules(cls, rules: Iterable[Rule], path: str = "<rules>") -> RuleSet:
@@ -138,6 +136,14 @@ class RuleSet:
     def sink_for(self, rule: RuleDecl | TopicDecl) -> DiagnosticSink:
         return DiagnosticSink(rule.path, self._sources.get(rule.path, ""))
 
+    def _diagnostic(
+        self, item: RuleDecl | TopicDecl, severity: Severity, message: str, at: Position
+    ) -> Diagnostic:
+        """One diagnostic at `at` of the file `item` came from, its line quoted."""
+        sink = self.sink_for(item)
+        sink.add(severity, message, at.line, at.col)
+        return sink.items[0]
+
     # -- static checks ------------------------------------------------------------------
 
     def topics(self) -> tuple[str, ...]:
@@ -145,43 +151,34 @@ class RuleSet:
         return tuple(dict.fromkeys(ref.topic for rule in self.rules for ref in rule.fields))
 
     def check(
-        self, relations: Mapping[str, tuple[frozenset[str], frozenset[str]]] | None = None
+        self, relations: Relations | None = None, message_types: MessageTypes | None = None
     ) -> list[Diagnostic]:
-        """Duplicate names, and pairs of rules that may hold at once while switching to
-        contradicting targets (the same layer on and off, two layers of one group, or two
-        that exclude each other). `relations` maps a layer to (its groups, what it
-        excludes); without it only the same-layer contradiction is known."""
+        """Duplicate names, topic declarations, and pairs of rules that may hold at once
+        while switching to contradicting targets (the same layer on and off, two layers of
+        one group, or two that exclude each other). `relations` maps a layer to (its
+        groups, what it excludes); without it only the same-layer contradiction is known.
+        With `message_types`, the fields of declared topics too (`check_declared_fields`)."""
         found: list[Diagnostic] = []
         seen: dict[str, RuleDecl] = {}
         for rule in self.rules:
             first = seen.get(rule.name)
             if first is not None:
-                sink = self.sink_for(rule)
-                sink.error(
-                    f"rule {rule.name!r} is already declared at {self.where(first)}",
-                    rule.at.line,
-                    rule.at.col,
-                )
-                found += sink.items
+                already = f"rule {rule.name!r} is already declared at {self.where(first)}"
+                found.append(self._diagnostic(rule, Severity.ERROR, already, rule.at))
             seen.setdefault(rule.name, rule)
         found += self._check_declarations()
         for index, first in enumerate(self.rules):
             for second in self.rules[index + 1 :]:
-                clash = _contradiction(first, second, relations or {})
+                clash = contradiction(first, second, relations or {})
                 if clash:
-                    only_relaxed = not _contradiction(first, second, relations or {}, False)
-                    hysteresis = _through_hysteresis(first, second) if only_relaxed else ""
-                    sink = self.sink_for(second)
-                    sink.warning(
-                        f"rules {first.name} ({self.where(first)}) and {second.name} may hold at "
-                        f"the same time{hysteresis} and {clash}: when both fire together, "
-                        f"{first.name} "
-                        "(declared first) wins and the other is logged as overridden; make "
-                        "their conditions exclusive",
-                        second.at.line,
-                        second.at.col,
+                    warning = (
+                        f"rules {first.name} ({self.where(first)}) and {second.name} {clash}: "
+                        f"when both fire together, {first.name} (declared first) wins and the "
+                        "other is logged as overridden; make their conditions exclusive"
                     )
-                    found += sink.items
+                    found.append(self._diagnostic(second, Severity.WARNING, warning, second.at))
+        if message_types is not None:
+            found += self.check_declared_fields(message_types)
         return found
 
     def _check_declarations(self) -> list[Diagnostic]:
@@ -222,13 +219,12 @@ class RuleSet:
             try:
                 lookups[declaration.topic] = message_types(declaration.type_name)
             except NoSuchMessageType as error:
-                sink = self.sink_for(declaration)
-                sink.error(
-                    f"the declared type of topic '{declaration.topic}' does not exist: {error}",
-                    declaration.type_at.line,
-                    declaration.type_at.col,
+                missing = (
+                    f"the declared type of topic '{declaration.topic}' does not exist: {error}"
                 )
-                found += sink.items
+                found.append(
+                    self._diagnostic(declaration, Severity.ERROR, missing, declaration.type_at)
+                )
             except ValueError as error:
                 unknown[declaration.topic] = (
                     f"its declared type {declaration.type_name} ({self.where(declaration)}) "
@@ -273,14 +269,11 @@ class RuleSet:
         if declaration is None or declaration.type_name == type_name:
             return None
         users = [rule.name for rule in self.rules if any(r.topic == topic for r in rule.fields)]
-        sink = self.sink_for(declaration)
-        sink.error(
+        mismatch = (
             f"topic {resolved} is published as {type_name}, but topic '{topic}' is declared "
-            f"as {declaration.type_name}: the rules reading it ({', '.join(users)}) stay off",
-            declaration.type_at.line,
-            declaration.type_at.col,
+            f"as {declaration.type_name}: the rules reading it ({', '.join(users)}) stay off"
         )
-        return sink.items[0]
+        return self._diagnostic(declaration, Severity.ERROR, mismatch, declaration.type_at)
 
     def check_fields(
         self,
@@ -395,131 +388,3 @@ def _shown(literal: Literal) -> str:
     if isinstance(value, bool):
         return "true" if value else "false"
     return f"{value:g}" if isinstance(value, float) else repr(value)
-
-
-# -- contradictions -----------------------------------------------------------------------
-
-Outcome = tuple[str, str]  # ("on" | "off", layer)
-
-
-def _outcomes(rule: RuleDecl, hysteresis: bool = True) -> list[tuple[Outcome, Condition, bool]]:
-    """(what happens, the condition under which it holds, whether that condition is
-    negated). A 'while' rule with hysteresis keeps its layer while the relaxed condition
-    holds (`x < 20 hysteresis 5`: until x >= 25), and its other outcome while the strict one
-    does not (x >= 20): the widest each can be in force (without `hysteresis`: the strict
-    condition both ways)."""
-    if rule.mode == "activate":
-        return [(("on", rule.layer.name), rule.condition, False)]
-    if rule.mode == "deactivate":
-        return [(("off", rule.layer.name), rule.condition, False)]
-    otherwise = ("on", rule.otherwise.name) if rule.otherwise else ("off", rule.layer.name)
-    holding = relaxed(rule.condition, rule.hysteresis) if hysteresis else rule.condition
-    return [(("on", rule.layer.name), holding, False), (otherwise, rule.condition, True)]
-
-
-def _contradiction(
-    first: RuleDecl,
-    second: RuleDecl,
-    relations: Mapping[str, tuple[frozenset[str], frozenset[str]]],
-    hysteresis: bool = True,
-) -> str:
-    for a, cond_a, neg_a in _outcomes(first, hysteresis):
-        for b, cond_b, neg_b in _outcomes(second, hysteresis):
-            why = _clashes(a, b, relations)
-            if why and not _disjoint(cond_a, neg_a, cond_b, neg_b):
-                return why
-    return ""
-
-
-def _through_hysteresis(first: RuleDecl, second: RuleDecl) -> str:
-    """Why two contradicting rules hold together only through hysteresis ('' if not)."""
-    margins = [rule for rule in (first, second) if rule.hysteresis and rule.mode == "while"]
-    if not margins:
-        return ""
-    kept = " and ".join(
-        f"{rule.name}'s hysteresis {rule.hysteresis:g} keeps it holding past its threshold"
-        for rule in margins
-    )
-    return f" ({kept})"
-
-
-def _clashes(
-    a: Outcome, b: Outcome, relations: Mapping[str, tuple[frozenset[str], frozenset[str]]]
-) -> str:
-    (verb_a, layer_a), (verb_b, layer_b) = a, b
-    if layer_a == layer_b:
-        return "" if verb_a == verb_b else f"one activates {layer_a} while the other deactivates it"
-    if verb_a == verb_b == "on":
-        groups_a, excludes_a = relations.get(layer_a, (frozenset(), frozenset()))
-        groups_b, excludes_b = relations.get(layer_b, (frozenset(), frozenset()))
-        shared = groups_a & groups_b
-        if shared:
-            return (
-                f"activate {layer_a} and {layer_b}, both of exclusive group {sorted(shared)[0]!r}"
-            )
-        if layer_b in excludes_a or layer_a in excludes_b:
-            return f"activate {layer_a} and {layer_b}, which exclude each other"
-    return ""
-
-
-Interval = tuple[float, bool, float, bool]  # low, low inclusive, high, high inclusive
-
-
-def _constraints(condition: Condition, negated: bool) -> dict[str, Interval] | None:
-    """The condition as one interval per numeric field, if it is a conjunction of
-    comparisons of fields with numbers (else None: nothing is known)."""
-    if isinstance(condition, Not):
-        return _constraints(condition.operand, not negated)
-    if isinstance(condition, BoolOp):
-        if (condition.op == "and") == negated:  # an 'or', or a negated 'and'
-            return None
-        merged: dict[str, Interval] = {}
-        for operand in condition.operands:
-            part = _constraints(operand, negated)
-            if part is None:
-                continue  # a conjunct we cannot read only weakens what we know: fine
-            for key, interval in part.items():
-                merged[key] = _intersect(merged[key], interval) if key in merged else interval
-        return merged
-    left, op, right = condition.left, condition.op, condition.right
-    if isinstance(right, FieldRef) and isinstance(left, Literal):
-        left, right = right, left
-        op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
-    if not (isinstance(left, FieldRef) and isinstance(right, Literal)):
-        return None
-    if not isinstance(right.value, float) or isinstance(right.value, bool):
-        return None  # strings and bools: not intervals
-    if negated:
-        op = {"<": ">=", "<=": ">", ">": "<=", ">=": "<", "==": "!=", "!=": "=="}[op]
-    value, inf = right.value, float("inf")
-    intervals = {
-        "<": (-inf, False, value, False),
-        "<=": (-inf, False, value, True),
-        ">": (value, False, inf, False),
-        ">=": (value, True, inf, False),
-        "==": (value, True, value, True),
-    }
-    if op not in intervals:
-        return None
-    return {left.text: intervals[op]}
-
-
-def _intersect(a: Interval, b: Interval) -> Interval:
-    low = max((a[0], a[1]), (b[0], b[1]), key=lambda edge: (edge[0], not edge[1]))
-    high = min((a[2], a[3]), (b[2], b[3]), key=lambda edge: (edge[0], edge[1]))
-    return (low[0], low[1], high[0], high[1])
-
-
-def _empty(interval: Interval) -> bool:
-    low, low_in, high, high_in = interval
-    return low > high or (low == high and not (low_in and high_in))
-
-
-def _disjoint(a: Condition, neg_a: bool, b: Condition, neg_b: bool) -> bool:
-    """True only when the two conditions provably cannot hold at once."""
-    if a is b and neg_a != neg_b:
-        return True
-    first, second = _constraints(a, neg_a), _constraints(b, neg_b)
-    if first is None or second is None:
-        return False
-    return any(_empty(_intersect(first[key], second[key])) for key in first.keys() & second.keys())
