@@ -24,14 +24,20 @@ from contextros.protocol.validation import command_problems
 from contextros.ros.messages import command_to_request, result_from_response
 from contextros.ros.topics import ACTIVATE_QOS, ACTIVATE_SERVICE, QUERY_QOS, QUERY_SERVICE
 
-# How long to wait for an answer beyond the activation's own timeout, and how often to ask.
-# A reply can be lost while the manager's reply writer has not yet matched a new client's
-# reader (a known Fast DDS discovery race, ros2/rmw_fastrtps#842); commands describe a
-# target configuration, so asking again is safe: a repeated command changes nothing more.
+# A command's timeout is its deadline, counted from its arrival at the manager: the manager
+# answers within it, or refuses a command it could not start by then (docs/protocol.md).
+# The client gives up REPLY_MARGIN after the timeout (a command without one: after
+# ASSUMED_DEFAULT_TIMEOUT, above the manager's default of 5 s), so a command is over within
+# its timeout plus this margin, and the manager never starts one its caller gave up on.
 REPLY_MARGIN = 2.0
-ATTEMPTS = 3
-# A synchronous command without a timeout waits the manager's default (5 s unless set).
 ASSUMED_DEFAULT_TIMEOUT = 10.0
+# A reply can be lost while the manager's reply writer has not yet matched a new client's
+# reader (a known Fast DDS discovery race, ros2/rmw_fastrtps#842). An asynchronous command
+# unanswered after RESEND_AFTER is sent again (at most ATTEMPTS in all), with the time
+# left as its timeout; a synchronous or atomic one is not (its answer may take until its
+# timeout, and an aborted atomic vote must not be started again behind its caller's back).
+RESEND_AFTER = 2.0
+ATTEMPTS = 3
 # Discovery: how often to look for the manager's services, how long to wait for a probe.
 POLL = 0.01
 PROBE = 0.2
@@ -187,33 +193,45 @@ class LayerClient:
         (nodes the manager may have dropped, a number of nodes), and a command that
         reached no node at all never succeeds. `atomic=True`: every live participant
         votes first, and either all switch to the new epoch or none does (the answer names
-        who vetoed and why); it waits up to twice `timeout` (vote, then acknowledgements).
+        who vetoed and why). `timeout` bounds the whole command (for an atomic one, vote and
+        acknowledgements): the manager answers within it, counted from the command's
+        arrival, and this call raises `ManagerError` if no answer came `REPLY_MARGIN` (2 s)
+        later (without a timeout: 10 s + 2 s).
         """
         activate, deactivate, expect_nodes = tuple(activate), tuple(deactivate), tuple(expect_nodes)
-        if synchronous or atomic:
-            phases = 2 if atomic else 1
-            wait = phases * (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
-        else:
-            wait = REPLY_MARGIN
-        for _ in range(ATTEMPTS):
+        started = time.monotonic()
+        give_up = started + (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
+        resend = not (synchronous or atomic)
+        sent_timeout = timeout
+        for attempt in range(1, ATTEMPTS + 1):
             future = self.request_async(
                 activate,
                 deactivate,
                 synchronous=synchronous,
-                timeout=timeout,
+                timeout=sent_timeout,
                 reason=reason,
                 expect_nodes=expect_nodes,
                 expect_count=expect_count,
                 atomic=atomic,
             )
+            last = not resend or attempt == ATTEMPTS
+            until = give_up if last else min(give_up, time.monotonic() + RESEND_AFTER)
             rclpy.spin_until_future_complete(
-                self.node, future, executor=self._executor, timeout_sec=wait
+                self.node,
+                future,
+                executor=self._executor,
+                timeout_sec=max(0.0, until - time.monotonic()),
             )
             if future.done():
                 return result_from_response(future.result())
             self._activate.remove_pending_request(future)
+            # A command sent again must end before this client gives up, as the first.
+            sent_timeout = give_up - time.monotonic() - REPLY_MARGIN
+            if last or sent_timeout <= 0:
+                break
         raise ManagerError(
-            f"the Layer manager did not answer {ATTEMPTS} attempts of {wait:g} s each"
+            f"the Layer manager did not answer within {time.monotonic() - started:.1f} s; "
+            "whether the command was carried out is unknown (see `contextros status`)"
         )
 
     def activate(

@@ -237,9 +237,11 @@ class LayerManagerNode(Node):
         # Layers that drive ROS: parameters and lifecycle states set before a state is
         # published (docs/ros-integration.md); commands wait their turn meanwhile.
         self.bindings: BindingDriver | None = None
-        self._commands: deque[ActivationCommand] = deque()
+        # Commands waiting for the ROS side, with when each arrived (its deadline and its
+        # answer's `elapsed` count from there).
+        self._commands: deque[tuple[ActivationCommand, float]] = deque()
         self._driving = False
-        self._driven: list[tuple[ActivationCommand | None, str]] = []
+        self._driven: list[tuple[tuple[ActivationCommand, float] | None, str]] = []
         self._driven_lock = threading.Lock()
         self._driven_guard = self.create_guard_condition(self._on_driven)
         # A failed reconcile (a bound node is down) is tried again later, with a growing
@@ -317,7 +319,7 @@ class LayerManagerNode(Node):
         if self.bindings is None:
             self._run(self.protocol.receive_command(command, time.monotonic()))
             return
-        self._commands.append(command)
+        self._commands.append((command, time.monotonic()))
         self._next_command()
 
     def _next_command(self) -> None:
@@ -330,8 +332,11 @@ class LayerManagerNode(Node):
         # it: held there, it would be published on its release past the ROS side. The tick
         # and the statuses bring it back.
         while self._commands and not self._driving:
-            command = self._commands[0]
-            if self.protocol.would_hold(command, time.monotonic()):
+            command, received = self._commands[0]
+            now = time.monotonic()
+            if self.protocol.would_hold(command, now) and not self.protocol.expired(
+                command, now, received
+            ):
                 return
             self._commands.popleft()
             problem, planned = self.protocol.preview(command)
@@ -342,10 +347,15 @@ class LayerManagerNode(Node):
                 self._reply(
                     command.request_id, ActivationResult(False, refusal, state.epoch, state.active)
                 )
-            elif problem or not self.bindings.plan(applied, planned):
-                self._run(self.protocol.receive_command(command, time.monotonic()))
+            elif (
+                problem
+                or not self.bindings.plan(applied, planned)
+                or self.protocol.expired(command, now, received)
+            ):
+                # (an expired command is refused by the protocol, nothing driven)
+                self._run(self.protocol.receive_command(command, now, received))
             else:
-                self._drive(command, applied, planned)
+                self._drive((command, received), applied, planned)
 
     def _atomic_refusal(self, planned: tuple[str, ...]) -> str:
         """Why an atomic command that would change ROS parameters or lifecycle states is
@@ -364,7 +374,10 @@ class LayerManagerNode(Node):
         )
 
     def _drive(
-        self, command: ActivationCommand | None, old: tuple[str, ...], new: tuple[str, ...]
+        self,
+        command: tuple[ActivationCommand, float] | None,
+        old: tuple[str, ...],
+        new: tuple[str, ...],
     ) -> None:
         assert self.bindings is not None
         self._driving = True
@@ -389,24 +402,28 @@ class LayerManagerNode(Node):
     def _on_driven(self) -> None:
         with self._driven_lock:
             driven, self._driven = self._driven, []
-        for command, error in driven:
+        for queued, error in driven:
             self._driving = False
-            if command is None:
+            if queued is None:
                 self._reconciled(error)
-            elif error:
+                continue
+            command, received = queued
+            if error:
                 result = ActivationResult(
                     False,
                     f"{error}; nothing changed",
                     self.protocol.state.epoch,
                     self.protocol.state.active,
+                    elapsed=time.monotonic() - received,
                 )
                 self._reply(command.request_id, result)
             elif self.protocol.would_hold(command, time.monotonic()):
                 # Its layer's only participant left meanwhile: back to the front of the
                 # queue; the reconcile brings ROS back to the published state.
-                self._commands.appendleft(command)
+                self._commands.appendleft(queued)
             else:
-                self._run(self.protocol.receive_command(command, time.monotonic()))
+                # Received when it arrived: the binding phase is part of its `elapsed`.
+                self._run(self.protocol.receive_command(command, time.monotonic(), received))
         # Waiting commands first: a failed reconcile must not starve them (each of its
         # tries may take seconds), and one whose plan reaches its target heals it anyway.
         self._next_command()

@@ -28,8 +28,9 @@ class AtomicVotes(ManagerBase):
     def _propose(
         self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
     ) -> list[ManagerAction]:
-        timeout = command.timeout if command.timeout > 0 else self.settings.default_timeout
-        timeout = min(timeout, self.settings.max_vote_time)
+        # The whole command, vote and acknowledgements, ends at its deadline.
+        deadline = min(self._deadline(command, received), received + self.settings.max_vote_time)
+        timeout = deadline - received
         speaks_for = {
             name
             for key, record in self._participants.items()
@@ -65,7 +66,7 @@ class AtomicVotes(ManagerBase):
             command=command,
             proposal=proposal,
             started=received,
-            deadline=now + timeout,
+            deadline=deadline,
             targets=set(self._participants),
             timeout=timeout,
         )
@@ -124,13 +125,13 @@ class AtomicVotes(ManagerBase):
             proposal.active, proposal.requester, proposal.reason, now, proposal.epoch - 1
         )
         # The second phase waits for the acknowledgements as a synchronous activation does,
-        # with the same timeout again.
+        # until the same deadline: the command's timeout bounds it as a whole.
         self._pending.append(
             PendingActivation(
                 command=transaction.command,
                 state=self._state,
                 started=transaction.started,
-                deadline=now + transaction.timeout,
+                deadline=transaction.deadline,
                 waiting={key for key in transaction.targets if key in self._participants},
             )
         )

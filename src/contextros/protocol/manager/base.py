@@ -142,6 +142,12 @@ class ManagerBase(ABC):
     def _someone_lags(self) -> bool:
         return any(r.report.applied_epoch < self._state.epoch for r in self._participants.values())
 
+    def _deadline(self, command: ActivationCommand, received: float) -> float:
+        """When the caller gives up on `command`: its timeout (or the manager's default)
+        after its arrival. A command not decided by then is refused, never executed."""
+        timeout = command.timeout if command.timeout > 0 else self.settings.default_timeout
+        return received + timeout
+
     def _result(self, success: bool, message: str) -> ActivationResult:
         return ActivationResult(success, message, self._state.epoch, self._state.active)
 

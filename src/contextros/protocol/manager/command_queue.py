@@ -9,7 +9,7 @@ recovery, for a participant implementing a layer nobody declared yet (`_held`). 
 
 from __future__ import annotations
 
-from contextros.protocol.events import ActivationCommand, ManagerAction, Reply
+from contextros.protocol.events import ActivationCommand, ActivationResult, ManagerAction, Reply
 from contextros.protocol.manager.base import NO_CHANGE, ManagerBase
 from contextros.protocol.manager.records import PendingActivation
 from contextros.protocol.relations import (
@@ -31,9 +31,47 @@ class CommandQueue(ManagerBase):
         waiting = len(self._pending) + len(self._queued) + len(self._held)
         return waiting + len(self._behind_transaction) + (self._transaction is not None)
 
+    def _expired(
+        self, command: ActivationCommand, now: float, received: float
+    ) -> list[ManagerAction]:
+        """The refusal of `command` if its deadline passed while it waited, else []."""
+        deadline = self._deadline(command, received)
+        if now < deadline:
+            return []
+        message = (
+            f"not started within the command's timeout ({deadline - received:g} s): it waited "
+            f"{now - received:.1f} s in the manager ({self._waiting_for()}); nothing changed"
+        )
+        result = ActivationResult(
+            False, message, self._state.epoch, self._state.active, elapsed=now - received
+        )
+        return [Reply(command.request_id, result)]
+
+    def _waiting_for(self) -> str:
+        if self.recovering:
+            return "recovering after its start"
+        if self._transaction is not None:
+            return f"behind the atomic vote on epoch {self._transaction.proposal.epoch}"
+        return "for a participant implementing its layers"
+
+    def _expire_waiting(self, now: float) -> list[ManagerAction]:
+        """Refuse the waiting commands whose callers gave up (their deadline passed)."""
+        actions: list[ManagerAction] = []
+        for waiting in (self._queued, self._held, self._behind_transaction):
+            kept = []
+            for command, received in waiting:
+                refusal = self._expired(command, now, received)
+                actions += refusal
+                if not refusal:
+                    kept.append((command, received))
+            waiting[:] = kept
+        return actions
+
     def _execute(
         self, command: ActivationCommand, now: float, received: float
     ) -> list[ManagerAction]:
+        if refusal := self._expired(command, now, received):
+            return refusal
         if self._transaction is not None:
             # One decision at a time: what others ask waits for the vote's outcome.
             self._behind_transaction.append((command, received))
@@ -59,13 +97,12 @@ class CommandQueue(ManagerBase):
         if not command.synchronous and not command.atomic:  # (atomic, no change: as sync)
             message = f"epoch {self._state.epoch} published{note}" if actions else NO_CHANGE
             return [*actions, Reply(command.request_id, self._result(True, message))]
-        timeout = command.timeout if command.timeout > 0 else self.settings.default_timeout
         self._pending.append(
             PendingActivation(
                 command=command,
                 state=self._state,
                 started=received,
-                deadline=received + timeout,
+                deadline=self._deadline(command, received),
                 waiting=set(self._participants),
                 changed=bool(actions),
                 note=note,

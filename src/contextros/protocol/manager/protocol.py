@@ -57,8 +57,14 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         actions += self._count_votes(now, voter=key if known is not None else None)
         return actions
 
-    def receive_command(self, command: ActivationCommand, now: float) -> list[ManagerAction]:
+    def receive_command(
+        self, command: ActivationCommand, now: float, received: float | None = None
+    ) -> list[ManagerAction]:
+        """A command, received at `received` (default `now`; earlier when the adapter had
+        work to do first, such as the layers' ROS side): its timeout and its answer's
+        `elapsed` count from there."""
         self._order_cache = None
+        received = now if received is None else received
         problems = command_problems(command)
         if problems:
             message = f"invalid command: {'; '.join(problems)}; nothing changed"
@@ -72,9 +78,11 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
             )
             return [Reply(command.request_id, self._result(False, message))]
         if self.recovering:
-            self._queued.append((command, now))
+            if refusal := self._expired(command, now, received):
+                return refusal
+            self._queued.append((command, received))
             return []
-        return self._execute(command, now, now)
+        return self._execute(command, now, received)
 
     def preview(self, command: ActivationCommand) -> tuple[str, tuple[str, ...]]:
         """What `command` would make active if it came now, changing nothing: ("", layers),
@@ -87,6 +95,11 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         if problem:
             return problem, self._state.active
         return "", self._next_active(command)
+
+    def expired(self, command: ActivationCommand, now: float, received: float) -> bool:
+        """Whether `command`, received at `received`, is past its deadline (its caller has
+        given up): `receive_command` would refuse it, nothing changed."""
+        return now >= self._deadline(command, received)
 
     def would_hold(self, command: ActivationCommand, now: float) -> bool:
         """Whether `receive_command(command, now)` would keep `command` waiting rather than
@@ -104,7 +117,7 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
 
     def tick(self, now: float) -> list[ManagerAction]:
         self._order_cache = None
-        actions: list[ManagerAction] = []
+        actions: list[ManagerAction] = self._expire_waiting(now)
         if self._recovering_until is not None and now >= self._recovering_until:
             actions += self._finish_recovery(now)
         if self._recovering_until is None:
