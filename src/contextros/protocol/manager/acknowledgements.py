@@ -56,18 +56,21 @@ class Acknowledgements(ManagerBase):
         return replies
 
     def _add_expected(self, pending: PendingActivation, keys: tuple[Key, ...] | None) -> None:
-        """An expected node that joined after the command must acknowledge it too (`keys`:
-        the participants to look at, None: all)."""
+        """A node that (re)joined after the command is waited for too when the requester
+        named it, or while fewer nodes than `expect_count` acknowledged (`keys`: the
+        participants to look at, None: all)."""
         wanted = set(pending.command.expect_nodes)
-        if not wanted:
+        count = pending.command.expect_count
+        if not wanted and not count:
             return
+        short = count > 0 and len(self._acknowledged_names(pending)) < count
         for key in self._participants if keys is None else keys:
             record = self._participants.get(key)
             if record is None or key in pending.waiting or key in pending.acknowledged:
                 continue
             if key in pending.lost or key in pending.failed:
                 continue
-            if {key[0], *record.report.hosted} & wanted:
+            if short or {key[0], *record.report.hosted} & wanted:
                 pending.waiting.add(key)
 
     def _acknowledged_names(self, pending: PendingActivation) -> set[str]:
