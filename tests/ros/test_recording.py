@@ -17,6 +17,8 @@ from sensor_msgs.msg import BatteryState
 
 from contextros.recording import read_recording
 from contextros.ros import LayerClient
+from tests.ros.processes import ProcessGroup
+from tests.ros.system import settle, wait_registry
 
 
 def record(*args: str) -> subprocess.Popen[str]:
@@ -62,6 +64,106 @@ def test_a_bad_topic_name_is_refused_before_any_file_is_written(tmp_path: Path) 
     assert done.returncode == 2
     assert "contextros record: topic 'not a topic': topic name must not contain" in err
     assert not output.exists()
+
+
+ROAD_LAYERS = """\
+layer Road:
+    def speed() -> float:
+        return 1.0
+
+layer Grass:
+    def speed() -> float:
+        return 0.5
+
+layer LowBattery after Road, Grass:
+    def speed() -> float:
+        return proceed() * 0.5
+
+base:
+    def speed() -> float:
+        return 0.0
+"""
+# A node declaring LowBattery with no `after` (issue 25: `Layer("LowBattery")`).
+ROAD_NODE = """
+import rclpy
+from contextros.core import Layer
+from contextros.ros import ContextNode, spin_nodes
+rclpy.init()
+spin_nodes([ContextNode("road_nodes", layers=[Layer(n) for n in ("LowBattery", "Road", "Grass")])])
+"""
+
+
+def test_the_replay_composes_as_the_live_manager_and_strict_fails_where_it_would_not(
+    client: LayerClient, tmp_path: Path
+) -> None:
+    """Issue 25: the manager's layer file says `layer LowBattery after Road, Grass`, the
+    node declares LowBattery without `after`. Live and replayed, [LowBattery] + Road is
+    composed [Road, LowBattery]; replayed through a file without the `after`, the order
+    differs, which the replay reports, and `--strict` fails on."""
+    layers = tmp_path / "robot.layers"
+    layers.write_text(ROAD_LAYERS, encoding="utf-8")
+    output = tmp_path / "run.mcap"
+    log = tmp_path / "record.log"
+    group = ProcessGroup()
+    recorder = None
+    try:
+        group.start("road_nodes", ["-c", ROAD_NODE])
+        group.manager("--layers", str(layers), "--recovery-window", "0.3")
+        wait_registry(client, lambda r: any(p.node == "/road_nodes" for p in r.participants))
+        settle(client)
+        with log.open("w") as stream:
+            recorder = subprocess.Popen(
+                [sys.executable, "-m", "contextros", "record", str(output)],
+                stdout=stream,
+                stderr=stream,
+            )
+        # The file is readable while it is written: wait until it holds the first state.
+        deadline = time.monotonic() + 20
+        while not output.exists() or not any(
+            m.topic == "/contextros/state"
+            for m in read_recording(output, truncated=lambda damage: None)
+        ):
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        client.activate("LowBattery", synchronous=True, timeout=5)
+        answer = client.activate("Road", synchronous=True, timeout=5)
+        assert answer.active == ("Road", "LowBattery")
+        time.sleep(0.3)
+        recorder.send_signal(signal.SIGINT)
+        assert recorder.wait(20) == 0, log.read_text()
+    finally:
+        if recorder is not None and recorder.poll() is None:
+            recorder.kill()
+        group.kill_all()
+    same = replay_strict(output, layers)
+    assert same.returncode == 0, same.stdout + same.stderr
+    assert "no difference from the 2 states recorded live" in same.stdout, same.stdout
+    unordered = tmp_path / "unordered.layers"
+    unordered.write_text(ROAD_LAYERS.replace(" after Road, Grass", ""), encoding="utf-8")
+    other = replay_strict(output, unordered)
+    assert other.returncode == 1, other.stdout + other.stderr
+    assert "1 difference from the 2 states recorded live:" in other.stdout, other.stdout
+    assert "order: live composed [Road, LowBattery] at " in other.stdout, other.stdout
+    assert "the replay [LowBattery, Road]" in other.stdout
+
+
+def replay_strict(recording: Path, layers: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "contextros",
+            "rules",
+            "replay",
+            "--strict",
+            str(recording),
+            "--rules",
+            str(layers),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
 
 
 def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(

@@ -68,7 +68,7 @@ def mcap_records(stream: BinaryIO, name: str) -> Iterator[Any]:
     reader = StreamReader(stream, emit_chunks=True, validate_crcs=True, record_size_limit=1 << 30)
     records = reader.records
     size = os.fstat(stream.fileno()).st_size
-    good = 0  # the end of the last whole record: where any damage begins
+    good = len(MAGIC)  # the end of the last whole record: where any damage begins
     while True:
         try:
             record = next(records)
