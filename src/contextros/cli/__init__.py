@@ -8,10 +8,13 @@ import sys
 from collections.abc import Sequence
 
 from contextros import __version__
-from contextros.cli import daemon_commands, language_commands, observe_commands, ros_commands
+from contextros.cli import daemon_commands, exits, language_commands, observe_commands, ros_commands
 from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.cli.ros_commands import USAGE
 from contextros.installation import cmake_package_prefixes, ros_problem
+
+# The commands that run until stopped: SIGINT or SIGTERM is their normal end (status 0).
+RUN_UNTIL_STOPPED = ("manager", "watch", "record", "dashboard")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -38,17 +41,60 @@ def build_parser() -> argparse.ArgumentParser:
     # they ask the manager themselves (importing rclpy to check would cost most of a run).
     for name in set(commands.choices) - offline - set(ros_commands.DAEMON_SERVED):
         commands.choices[name].set_defaults(needs_ros=True)
+    for name in RUN_UNTIL_STOPPED:
+        commands.choices[name].set_defaults(runs_until_stopped=True)
     return parser
 
 
+def subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The parser's subcommands by name (`rules replay` for nested ones)."""
+    found: dict[str, argparse.ArgumentParser] = {}
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for name, subparser in action.choices.items():
+                deeper = subcommands(subparser)
+                found |= {f"{name} {verb}": p for verb, p in deeper.items()} or {name: subparser}
+    return found
+
+
+def options_after_command(parser: argparse.ArgumentParser, argv: Sequence[str]) -> list[str]:
+    """`argv` with the options given before the command moved after it, where argparse
+    looks for them: `contextros --namespace /robot1 status` is `contextros status
+    --namespace /robot1` (the parser's own options, --version, --help, stay first)."""
+    names = {name.split()[0] for name in subcommands(parser)}
+    own = {option for action in parser._actions for option in action.option_strings}
+    words = list(argv)
+    command = next((i for i, word in enumerate(words) if word in names), None)
+    if command is None:
+        return words
+    before = words[:command]
+    kept = [word for word in before if word in own]
+    moved = [word for word in before if word not in own]
+    rest = words[command:]
+    end = rest.index("--") if "--" in rest else len(rest)
+    return [*kept, *rest[:end], *moved, *rest[end:]]
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run a command; its exit status (docs/cli.md, "Exit statuses")."""
+    exits.stop_on_signals()
+    args = argparse.Namespace()
+    try:
+        return _run(args, sys.argv[1:] if argv is None else argv)
+    except exits.Stopped as stop:
+        return 0 if getattr(args, "runs_until_stopped", False) else 128 + stop.signum
+    except BrokenPipeError:
+        return exits.output_closed()
+
+
+def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
     # numpy, which rclpy imports, otherwise starts an OpenBLAS thread per core that spins
     # for a while: 0.1 s of CPU per ROS process here; no command needs threaded algebra.
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     parser = build_parser()
     # Standard ROS arguments (`--ros-args -r __ns:=/robot1 ...`) go to rclpy, untouched.
-    own, ros_arguments = split_ros_arguments(sys.argv[1:] if argv is None else argv)
-    args = parser.parse_args(own)
+    own, ros_arguments = split_ros_arguments(argv)
+    parser.parse_args(options_after_command(parser, own), namespace=args)
     args.ros_arguments = ros_arguments
     if args.cmake_prefix:
         return _print_cmake_prefix()
@@ -59,6 +105,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"contextros {args.command}: {problem}", file=sys.stderr)
         return USAGE
     status: int = args.run(args)
+    if status == ros_commands.INTERRUPTED:  # the command's own client said so
+        return exits.interrupted_status()
     return status
 
 

@@ -65,7 +65,9 @@ def answered_in_child(
     try:
         with os.fdopen(readable, "rb") as pipe:
             data = pipe.read()  # until the child sent its report, or ended without one
-    except KeyboardInterrupt:  # the child got the same Ctrl-C
+    except KeyboardInterrupt:  # the child got the same Ctrl-C, or gets it now (a SIGTERM)
+        with contextlib.suppress(OSError):
+            os.kill(child, signal.SIGINT)
         _reap(child, limit)
         yield interrupted
         return

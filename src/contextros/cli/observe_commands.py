@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import sys
@@ -221,36 +220,24 @@ def run_dashboard(args: argparse.Namespace) -> int:
 
 
 def _dashboard(args: argparse.Namespace) -> int:
-    import threading
-
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
     from contextros.cli.ros_commands import TEARDOWN_LIMIT
     from contextros.dashboard.model import DashboardModel
     from contextros.dashboard.server import DashboardServer, serve
     from contextros.ros.dashboard_node import DashboardNode
-    from contextros.ros.spinning import bounded_teardown
+    from contextros.ros.spinning import bounded_teardown, spinning_in_thread
 
     model = DashboardModel(args.robots)
     server = DashboardServer(model)
     model.on_change = server.notify
     node = DashboardNode(model, args.robots)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-
-    def spin() -> None:
-        with contextlib.suppress(ExternalShutdownException):
-            executor.spin()
-
-    spinner = threading.Thread(target=spin, name="contextros-dashboard-ros", daemon=True)
-    spinner.start()
 
     def ready(port: int) -> None:
         host = f"[{args.host}]" if ":" in args.host else args.host
         print(f"dashboard on http://{host}:{port}/ (Ctrl-C stops)", flush=True)
 
     try:
-        serve(server, args.host, args.port, ready)
+        with spinning_in_thread(node, "contextros-dashboard-ros", TEARDOWN_LIMIT):
+            serve(server, args.host, args.port, ready)
     except OSError as error:
         print(
             f"contextros dashboard: cannot listen on {args.host}:{args.port}: {error}",
@@ -259,7 +246,6 @@ def _dashboard(args: argparse.Namespace) -> int:
         return USAGE
     finally:
         with bounded_teardown(TEARDOWN_LIMIT):
-            executor.shutdown(timeout_sec=1.0)
             node.destroy_node()
     return 0
 

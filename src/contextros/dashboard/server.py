@@ -114,4 +114,10 @@ def serve(server: DashboardServer, host: str, port: int, on_ready: Any) -> None:
         finally:
             await runner.cleanup()
 
-    asyncio.run(main())
+    previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        asyncio.run(main())
+    finally:  # the loop leaves the default handlers behind: the teardown keeps the caller's
+        for signum, handler in previous.items():
+            if handler is not None:
+                signal.signal(signum, handler)

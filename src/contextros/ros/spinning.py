@@ -90,6 +90,38 @@ def spin_nodes(
 
 
 @contextlib.contextmanager
+def spinning_in_thread(
+    node: Node, name: str, teardown_limit: float | None = None
+) -> Iterator[None]:
+    """Spin `node` in a thread of its own while the block runs (the main thread serving
+    something else: the dashboard's web server). The thread has ended when the block has:
+    a thread still inside rclpy when the interpreter finalizes aborts the process
+    (`terminate called without an active exception`). `teardown_limit`: see
+    `bounded_teardown`."""
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    stop = threading.Event()
+
+    def spin() -> None:
+        try:
+            while not stop.is_set() and rclpy.ok():
+                executor.spin_once(timeout_sec=0.1)
+        except (ExternalShutdownException, RCLError):
+            if rclpy.ok():  # not a signal's shutdown: show it
+                raise
+
+    spinner = threading.Thread(target=spin, name=name, daemon=True)
+    spinner.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        with bounded_teardown(teardown_limit):
+            spinner.join()
+            executor.shutdown(timeout_sec=0.5)
+
+
+@contextlib.contextmanager
 def bounded_teardown(limit: float | None) -> Iterator[None]:
     """For a program's main: if the block (tearing nodes down) takes more than `limit`
     seconds, the process ends with status 1 and every thread's stack on stderr. Under

@@ -1,0 +1,59 @@
+"""How a command ends when it is told to: SIGINT, SIGTERM, or a reader that went away.
+
+`main` installs `stop_on_signals` first thing. Either signal then raises `Stopped`, a
+KeyboardInterrupt, so every `except KeyboardInterrupt` on the way (spin_nodes, the
+command's ROS client) treats SIGTERM as it treats Ctrl-C; rclpy's own handler, installed
+later by `rclpy.init`, shuts its context down and then calls this one. `main` turns the
+interruption into the status docs/cli.md gives: 128 + the signal's number (130, 143), or 0
+for the commands that run until stopped. A closed standard output (`contextros status |
+head -1`) ends the command quietly with 141, the status SIGPIPE gives in a shell.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import sys
+from types import FrameType
+
+CLOSED_OUTPUT = 128 + signal.SIGPIPE
+
+
+class Stopped(KeyboardInterrupt):
+    """SIGINT or SIGTERM arrived."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+# The last stop signal received, for the commands that report an interruption themselves.
+received: int | None = None
+
+
+def stop_on_signals() -> None:
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, _stop)
+
+
+def _stop(signum: int, frame: FrameType | None) -> None:
+    del frame
+    global received
+    received = signum
+    raise Stopped(signum)
+
+
+def interrupted_status() -> int:
+    """The status of a command interrupted by the last stop signal (Ctrl-C if none)."""
+    return 128 + (received or signal.SIGINT)
+
+
+def output_closed() -> int:
+    """After a BrokenPipeError on the standard output: its descriptor goes to /dev/null (so
+    that Python's flush at exit raises nothing more); the command's status."""
+    with contextlib.suppress(OSError):
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    return CLOSED_OUTPUT
