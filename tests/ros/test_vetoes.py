@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
+from tests.ros.test_cli import contextros
 from tests.ros.system import LIVENESS, settle, wait_registry
 
 
@@ -48,3 +49,8 @@ def test_every_node_that_says_no_is_named(client: LayerClient, processes: Proces
     assert "/n1 vetoed: battery low" in result.message
     assert "/n2 vetoed: arm busy" in result.message
     assert (result.epoch, result.active) == (before.epoch, ("Indoor",))
+    # On the command line: a failure on stderr, nothing that reads as a success on stdout.
+    done = contextros("activate", "Night", "--atomic", "--timeout", "5")
+    assert done.returncode == 1, done
+    assert "acknowledged" not in done.stdout, done.stdout
+    assert "/n1 vetoed: battery low" in done.stderr and "/n2 vetoed: arm busy" in done.stderr

@@ -368,8 +368,8 @@ def _through_daemon(args: argparse.Namespace, request: dict[str, Any]) -> dict[s
         return None  # the direct path says what is wrong with it
     from contextros.cli.daemon.client import answer_for
 
-    # Long enough for the client's own retries: 3 attempts of (2 phases x timeout + 2 s).
-    longest = args.wait_manager + 3 * (2 * max(getattr(args, "timeout", 0.0), 10.0) + 2.0) + 5.0
+    # Long enough for the client: it gives up 2 s after the timeout (10 s without one).
+    longest = args.wait_manager + max(getattr(args, "timeout", 0.0), 10.0) + 2.0 + 5.0
     return answer_for(
         request | {"namespace": args.namespace, "wait_manager": args.wait_manager}, longest
     )
@@ -417,13 +417,19 @@ def _print_result(args: argparse.Namespace, on: list[str], result: dict[str, Any
         print(f"epoch {result['epoch']}: active [{layers}]")
         if result["success"] and result["message"].startswith("no change"):
             print(result["message"])
-        elif result["acknowledged"] or result["not_acknowledged"]:
+        elif result["success"] and (result["acknowledged"] or result["not_acknowledged"]):
             print(
                 f"acknowledged by {len(result['acknowledged'])} node(s) "
                 f"in {result['elapsed'] * 1000:.1f} ms"
             )
     if not result["success"]:
+        # A failure reads as one on stderr, never as an acknowledgement on stdout.
         print(f"contextros: {result['message']}", file=sys.stderr)
+        if result["acknowledged"] and not args.json:
+            print(
+                f"contextros: applied only by {', '.join(result['acknowledged'])}",
+                file=sys.stderr,
+            )
         return FAILED
     return 0
 
