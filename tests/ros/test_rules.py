@@ -252,6 +252,24 @@ def test_the_manager_refuses_every_file_check_refuses_and_lists_every_error(
     assert "more error" not in manager.stderr, "every error listed, not a count"
 
 
+def test_check_together_refuses_what_the_manager_refuses_in_several_files(tmp_path: Path) -> None:
+    sensors = tmp_path / "sensors.layers"
+    sensors.write_text("topic battery: sensor_msgs/msg/BatteryState\n", encoding="utf-8")
+    robot = tmp_path / "robot.layers"
+    robot.write_text("rule Low: Night while battery.percent < 20\n", encoding="utf-8")
+    files = (str(sensors), str(robot))
+    assert contextros("check", *files).returncode == 0, "each alone: a note (no declaration)"
+    together = contextros("check", "--together", *files)
+    assert together.returncode == 1
+    assert heads(together.stdout) == [
+        f"{robot}:1:23: error: sensor_msgs/msg/BatteryState (the type of topic 'battery') has "
+        "no field 'percent'"
+    ]
+    manager = contextros("manager", "--layers", *files)
+    assert manager.returncode == 2
+    assert heads(manager.stderr)[1:] == heads(together.stdout)
+
+
 def test_a_misspelt_message_type_names_the_installed_one(tmp_path: Path) -> None:
     path = tmp_path / "robot.layers"
     path.write_text(BROKEN["misspelt.layers"][0], encoding="utf-8")

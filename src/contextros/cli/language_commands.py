@@ -68,6 +68,13 @@ def register(commands: Any) -> None:
         help="also warn where activating these layers in this order contradicts the "
         "declared 'after' orders (the order you would give `contextros activate`)",
     )
+    check_parser.add_argument(
+        "--together",
+        action="store_true",
+        help="check the files as one set, as `contextros manager --layers FILE...` loads them: "
+        "also a rule name or a topic's type declared in two of them, and rules' fields "
+        "against another file's topic declaration",
+    )
     check_parser.set_defaults(run=run_check)
 
 
@@ -93,7 +100,7 @@ def _layer_files(names: list[str]) -> list[Path]:
 
 
 def run_check(args: argparse.Namespace) -> int:
-    from contextros.language.checker import check_file  # imported here: a fast CLI start
+    from contextros.language.checker import check_files  # imported here: a fast CLI start
 
     # Rules' fields are checked against the message types their `topic` declarations name,
     # as installed here (imported only when declared; never rclpy).
@@ -105,10 +112,12 @@ def run_check(args: argparse.Namespace) -> int:
         if problem:
             print(f"{name}: error: {problem}; nothing checked")
             errors += 1
-    for path in _layer_files([n for n in args.files if not _not_layers(Path(n))]):
-        diagnostics = check_file(path, args.language, installed_message_type)
-        if args.activation and not any(d.is_error for d in diagnostics):
-            diagnostics += _activation_warnings(path, args.activation, args.language)
+    paths = _layer_files([n for n in args.files if not _not_layers(Path(n))])
+    for group in [paths] if args.together else [[path] for path in paths]:
+        diagnostics = check_files(group, args.language, installed_message_type)
+        for path in group if args.activation else ():
+            if not any(d.is_error and d.path == str(path) for d in diagnostics):
+                diagnostics += _activation_warnings(path, args.activation, args.language)
         for diagnostic in diagnostics:
             print(diagnostic.render())
             errors += diagnostic.is_error

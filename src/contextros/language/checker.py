@@ -114,11 +114,16 @@ def check_files(
             by_file[name] = unreadable(name, error)
             continue
         layer_file, found = parse_with_diagnostics(source, name, language)
-        by_file[name] = [*found, *check(layer_file, message_types)]
+        by_file[name] = [*found, *check(layer_file)]
         parsed.append((name, source, layer_file))
-    for diagnostic in RuleSet.from_parsed(parsed).check(message_types=message_types):
-        if diagnostic.is_error:  # (warnings and notes: each file's own say the same)
-            by_file.setdefault(diagnostic.path, []).append(diagnostic)
+    rules = RuleSet.from_parsed(parsed)
+    # Across the files, errors only (a rule name or a topic's type declared twice: each
+    # file's warnings stand); the declared topics' fields once, against every declaration.
+    together = [d for d in rules.check() if d.is_error]
+    if message_types is not None:
+        together += rules.check_declared_fields(message_types)
+    for diagnostic in together:
+        by_file.setdefault(diagnostic.path, []).append(diagnostic)
     return [d for found in by_file.values() for d in sorted_diagnostics(found)]
 
 
