@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
-from tests.ros.test_cli import contextros
 from tests.ros.system import LIVENESS, settle, wait_registry
+from tests.ros.test_cli import contextros
 
 
 def start(processes: ProcessGroup, client: LayerClient, nodes: dict[str, list[str]]) -> None:
