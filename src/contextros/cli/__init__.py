@@ -80,7 +80,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     exits.stop_on_signals()
     args = argparse.Namespace()
     try:
-        return _run(args, sys.argv[1:] if argv is None else argv)
+        try:
+            status = _run(args, sys.argv[1:] if argv is None else argv)
+        except SystemExit as done:  # argparse's --help, --version and usage errors
+            status = done.code if isinstance(done.code, int) else int(done.code is not None)
+        sys.stdout.flush()  # here, where a reader gone away is seen, not at exit
+        return status
     except exits.Stopped as stop:
         return 0 if getattr(args, "runs_until_stopped", False) else 128 + stop.signum
     except BrokenPipeError:

@@ -70,6 +70,8 @@ def run_start(args: argparse.Namespace) -> int:
     if args.foreground:
         from contextros.cli.daemon.server import serve
 
+        args.runs_until_stopped = True  # a signal before it serves ends it as one after
+
         return serve(place, args.idle_timeout, args.warm_namespace, args.expect_key)
     running = client.ping(place)
     pong = running or client.start(place, args.warm_namespace, args.idle_timeout)
