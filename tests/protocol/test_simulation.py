@@ -1,10 +1,10 @@
 """The simulated fleet (contextros.protocol.simulation): a short sweep of seeds finds no
 violated guarantee, a seed replays exactly (also from the command line, whatever Python's
-hash seed), and the checks catch a manager that breaks a guarantee."""
+hash seed), the checks catch a manager that breaks a guarantee, and what the protocol is
+known to break shows."""
 
 from __future__ import annotations
 
-import dataclasses
 import os
 import subprocess
 import sys
@@ -12,12 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from contextros.protocol import (
-    ActivationCommand,
-    ActivationResult,
-    ManagerAction,
-    PublishState,
-    Reply,
+from contextros.protocol.invariants import (
+    ALL,
+    KNOWN_BROKEN,
+    ONE_VETO,
+    ONE_VOTE,
+    PROPOSAL_EPOCHS,
+    SYNC_NAMES_KNOWN,
 )
 from contextros.protocol.manager import ManagerProtocol
 from contextros.protocol.simulation import (
@@ -27,6 +28,12 @@ from contextros.protocol.simulation import (
     Simulation,
     main,
     simulate,
+)
+from tests.protocol.broken_managers import (
+    ClaimsEveryNode,
+    ForgetsParticipants,
+    ForgetsProposals,
+    ReusesEpochs,
 )
 
 SMALL = 6
@@ -70,35 +77,9 @@ def test_messages_per_clean_activation_are_one_state_and_one_status_per_node() -
     assert report.messages_per_activation == pytest.approx(40, abs=2)
 
 
-class _ReusesEpochs(ManagerProtocol):
-    """Publishes every new configuration under the epoch it has already."""
-
-    def _publish(
-        self, active: tuple[str, ...], requester: str, reason: str, now: float, above: int
-    ) -> PublishState:
-        epoch = self._state.epoch
-        published = super()._publish(active, requester, reason, now, above)
-        if not epoch:
-            return published
-        self._state = dataclasses.replace(self._state, epoch=epoch)
-        return PublishState(self._state)
-
-
-class _ClaimsEveryNode(ManagerProtocol):
-    """Answers a synchronous command at once, claiming every live node applied it."""
-
-    def receive_command(self, command: ActivationCommand, now: float) -> list[ManagerAction]:
-        actions = super().receive_command(command, now)
-        if not command.synchronous:
-            return actions
-        self._pending.clear()
-        result = ActivationResult(True, "", self._state.epoch + 1, (), self.live_nodes)
-        return [*actions, Reply(command.request_id, result)]
-
-
 @pytest.mark.parametrize(
     ("broken", "complaint"),
-    [(_ReusesEpochs, "names two layer sets"), (_ClaimsEveryNode, "never applied it")],
+    [(ReusesEpochs, "names two layer sets"), (ClaimsEveryNode, "never applied it")],
 )
 def test_a_broken_manager_is_caught_and_the_seed_named(
     broken: type[ManagerProtocol], complaint: str
@@ -107,6 +88,38 @@ def test_a_broken_manager_is_caught_and_the_seed_named(
         Simulation(Scenario(SMALL, 5), manager_class=broken).run()
     assert complaint in str(caught.value)
     assert "--seed 5 --participants 6" in str(caught.value)
+
+
+# Issue 24's items 1 and 2 as the protocol was before their fix: the simulation's new
+# checks catch them (run on the code before the fix, the sweep above fails so).
+@pytest.mark.parametrize(
+    ("broken", "invariant", "seed"),
+    [(ForgetsProposals, PROPOSAL_EPOCHS, 11), (ForgetsParticipants, SYNC_NAMES_KNOWN, 6)],
+)
+def test_a_restarted_manager_forgetting_what_it_knew_is_caught(
+    broken: type[ManagerProtocol], invariant: str, seed: int
+) -> None:
+    with pytest.raises(InvariantViolation) as caught:
+        Simulation(Scenario(SMALL, seed), manager_class=broken).run()
+    assert caught.value.invariant == invariant
+
+
+# What the protocol is known to break (`KNOWN_BROKEN`), each on a seed that shows it:
+# strict, so that the fix shows as a failure here (then drop it from KNOWN_BROKEN).
+@pytest.mark.xfail(
+    strict=True,
+    raises=InvariantViolation,
+    reason="issue 24 item 4: a node remembers only its last vote, so a late copy of an "
+    "older proposal has its vetoes asked, and is voted on, again",
+)
+@pytest.mark.parametrize(("invariant", "seed"), [(ONE_VETO, 14), (ONE_VOTE, 20)])
+def test_a_node_votes_once_per_proposal(invariant: str, seed: int) -> None:
+    simulate(Scenario(SMALL, seed, checked=ALL - KNOWN_BROKEN | {invariant}))
+
+
+def test_the_invariants_left_out_are_the_known_broken_ones() -> None:
+    assert Scenario().checked == ALL - KNOWN_BROKEN
+    assert "--check-all" in Scenario(checked=ALL).replay_command()
 
 
 def test_the_command_line_runs_a_seed(capsys: pytest.CaptureFixture[str]) -> None:

@@ -35,6 +35,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from functools import partial
 
+from contextros.protocol.adapter_model import deliver_proposal, state_file
 from contextros.protocol.events import (
     ActivationCommand,
     ActivationResult,
@@ -47,12 +48,17 @@ from contextros.protocol.events import (
     PublishState,
     PublishStatus,
     Reply,
-    StateRejected,
+)
+from contextros.protocol.invariants import (
+    ALL,
+    KNOWN_BROKEN,
+    Invariants,
+    InvariantViolation,
 )
 from contextros.protocol.manager import ManagerProtocol, ManagerSettings
 from contextros.protocol.participant import DEFAULT_HEARTBEAT_PERIOD, ParticipantProtocol
 from contextros.protocol.relations import LayerDeclaration
-from contextros.protocol.state import LayerState
+from contextros.protocol.state import LayerState, ManagerMemory
 
 LAYERS = (
     LayerDeclaration("Indoor", group="location"),
@@ -65,11 +71,6 @@ MANAGER_TICK = 0.05  # the rclpy manager node's timer period
 
 # What travels, as the first item of a scheduled event.
 _TO_MANAGER, _STATE, _PROPOSAL, _WAKE, _MANAGER_TICK, _SCRIPT = range(6)
-
-
-class InvariantViolation(AssertionError):
-    """A guarantee of docs/protocol.md broke in a simulated run (the message says how to
-    replay it)."""
 
 
 @dataclass(frozen=True)
@@ -103,11 +104,15 @@ class Scenario:
     # a dropped node rejoins at its next heartbeat, a lagging one gets the manager's.
     converge_within: float = 10.0
     settings: ManagerSettings = field(default_factory=ManagerSettings)
+    # The invariants checked (contextros.protocol.invariants): by default all but those
+    # the protocol is known to break (`KNOWN_BROKEN`).
+    checked: frozenset[str] = ALL - KNOWN_BROKEN
 
     def replay_command(self) -> str:
+        everything = " --check-all" if self.checked == ALL else ""
         return (
             f"python -m contextros.protocol.simulation --seed {self.seed} "
-            f"--participants {self.participants}"
+            f"--participants {self.participants}{everything}"
         )
 
 
@@ -141,9 +146,6 @@ class _Node:
     generation: int = 0  # its incarnation number: events for an older one are void
     alive: bool = True
     next_wake: float = 0.0
-    # Every epoch this incarnation applied, for the no-regression check.
-    last_applied: int = 0
-    ever_applied: int = 0
     veto_next: bool = False
 
 
@@ -180,15 +182,10 @@ class Simulation:
             _Node(f"/robot/node{index}", self._participant(f"/robot/node{index}", 0))
             for index in range(scenario.participants)
         ]
-        self._index = {node.name: index for index, node in enumerate(self.nodes)}
+        self.invariants = Invariants(scenario.checked, describe=self._describe)
         self.manager_generation = 0
         self.manager: ManagerProtocol | None = self._start_manager(None)
-        self.state_file: LayerState | None = None
-        # Every state published or applied, by epoch, with who published it (a restarted
-        # manager may propose an epoch its predecessor proposed and aborted; never publish).
-        self.layers_of_epoch: dict[int, tuple[str, ...]] = {}
-        self.aborted: set[tuple[int, int]] = set()  # (manager generation, epoch)
-        self.published: set[tuple[int, int]] = set()
+        self.state_file: ManagerMemory | None = None
         self.commands: dict[int, _Command] = {}
         self._request_id = 0
 
@@ -197,10 +194,13 @@ class Simulation:
     def _participant(self, name: str, generation: int) -> ParticipantProtocol:
         return ParticipantProtocol(name, f"i{generation}", LAYERS)
 
-    def _start_manager(self, saved: LayerState | None) -> ManagerProtocol:
+    def _start_manager(self, saved: ManagerMemory | None) -> ManagerProtocol:
         self.manager_generation += 1
         settings = replace(self.scenario.settings, manager_id=f"m{self.manager_generation}")
         self._schedule(self.now + MANAGER_TICK, _MANAGER_TICK, generation=self.manager_generation)
+        self.invariants.manager_started(
+            settings.manager_id, self.now, settings.liveness_timeout, saved is not None
+        )
         return self.manager_class(self.now, settings, saved)
 
     # -- the event queue ------------------------------------------------------------------
@@ -285,10 +285,16 @@ class Simulation:
                 self._run_participant(target, protocol.receive_state(payload, self.now))
             else:
                 assert isinstance(payload, LayerState)
-                veto = ""
-                if node.veto_next and payload.epoch > protocol.newest_epoch:
-                    node.veto_next, veto = False, "busy (simulated veto)"
-                actions = protocol.receive_proposal(payload, self.now, veto)
+
+                def application_veto(proposal: LayerState) -> str:
+                    if node.veto_next and proposal.epoch > protocol.newest_epoch:
+                        node.veto_next = False
+                        return "busy (simulated veto)"
+                    return ""
+
+                actions = deliver_proposal(
+                    self.invariants, protocol, payload, self.now, application_veto
+                )
                 self._run_participant(target, actions)
             repeat = protocol.next_repeat
             if repeat is not None:
@@ -300,18 +306,14 @@ class Simulation:
         started = time.process_time()
         actions = call(manager)
         self.counters.manager_cpu += time.process_time() - started
+        self.state_file = state_file(manager)  # persisted, then the actions go out
         self._run_manager(actions)
 
     def _run_manager(self, actions: Sequence[ManagerAction]) -> None:
-        generation = self.manager_generation
+        self.invariants.manager_actions(f"m{self.manager_generation}", actions, self.now)
         for action in actions:
             if isinstance(action, PublishState):
                 state = action.state
-                self._check_epoch(state, f"published by manager m{generation}")
-                if (generation, state.epoch) in self.aborted:
-                    self._fail(f"epoch {state.epoch} was published after its atomic abort")
-                self.published.add((generation, state.epoch))
-                self.state_file = state  # persisted, then broadcast
                 self._trace.update(f"S{state.epoch}{state.active}".encode())
                 self._broadcast(_STATE, state)
             elif isinstance(action, PublishHeartbeat):
@@ -319,7 +321,7 @@ class Simulation:
             elif isinstance(action, PublishProposal):
                 self._broadcast(_PROPOSAL, action.state)
             elif isinstance(action, Reply):
-                self._check_answer(action.request_id, action.result)
+                self._answer(action.request_id, action.result)
 
     def _broadcast(self, kind: int, state: LayerState) -> None:
         for index, node in enumerate(self.nodes):
@@ -327,67 +329,29 @@ class Simulation:
 
     def _run_participant(self, index: int, actions: Sequence[ParticipantAction]) -> None:
         node = self.nodes[index]
+        self.invariants.participant_actions(node.name, node.protocol.incarnation, actions)
         for action in actions:
             if isinstance(action, ApplyState):
-                state = action.state
-                if state.epoch <= node.last_applied:
-                    self._fail(f"{node.name} went back from {node.last_applied} to {state}")
-                if (_generation_of(state), state.epoch) in self.aborted:
-                    self._fail(f"{node.name} applied aborted epoch {state.epoch}")
-                self._check_epoch(state, f"applied by {node.name}")
-                node.last_applied = state.epoch
-                node.ever_applied = max(node.ever_applied, state.epoch)
-                self._run_participant(index, node.protocol.applied(state, self.now))
+                self._run_participant(index, node.protocol.applied(action.state, self.now))
             elif isinstance(action, PublishStatus):
                 self._send(_TO_MANAGER, -1, index, action.report)
-            elif isinstance(action, StateRejected):
-                self._fail(f"{node.name} rejected a state of the manager: {action.problems}")
 
     # -- invariants -----------------------------------------------------------------------
 
-    def _fail(self, what: str) -> None:
-        raise InvariantViolation(
-            f"seed {self.scenario.seed}, {self.scenario.participants} participants, "
-            f"t={self.now:.3f} s: {what}\nreplay: {self.scenario.replay_command()}"
+    def _describe(self, what: str) -> str:
+        scenario = self.scenario
+        return (
+            f"seed {scenario.seed}, {scenario.participants} participants, t={self.now:.3f} s: "
+            f"{what}\nreplay: {scenario.replay_command()}"
         )
 
-    def _check_epoch(self, state: LayerState, where: str) -> None:
-        known = self.layers_of_epoch.setdefault(state.epoch, state.active)
-        if known != state.active:
-            self._fail(
-                f"epoch {state.epoch} names two layer sets: {known} and {state.active} ({where})"
-            )
+    def _fail(self, what: str) -> None:
+        raise InvariantViolation(self._describe(what))
 
-    def _check_answer(self, request_id: int, result: ActivationResult) -> None:
-        asked = self.commands.get(request_id)
-        if asked is None:
-            self._fail(f"an answer to request {request_id}, never asked")
-            return
-        if asked.answer is not None:
-            self._fail(f"a second answer to request {request_id}: {result.message}")
+    def _answer(self, request_id: int, result: ActivationResult) -> None:
+        asked = self.commands[request_id]  # the invariants checked it was asked, once
         asked.answer = result
-        command = asked.command
         self._trace.update(f"R{request_id}{result.success}{result.epoch}".encode())
-        if command.atomic and "aborted" in result.message:
-            epoch = int(result.message.split("epoch ")[1].split(" ")[0])
-            if (self.manager_generation, epoch) in self.published:
-                self._fail(f"atomic epoch {epoch} aborted after it was published")
-            self.aborted.add((self.manager_generation, epoch))
-        if not result.success:
-            return
-        known = self.layers_of_epoch.get(result.epoch)
-        if known is not None and known != result.active:
-            self._fail(
-                f"answer to {request_id} says epoch {result.epoch} is {result.active}, "
-                f"it is {known}"
-            )
-        if not (command.synchronous or command.atomic):
-            return
-        if not result.acknowledged:
-            self._fail(f"synchronous success of request {request_id} reached no node")
-        for name in result.acknowledged:
-            if self.nodes[self._index[name]].ever_applied < result.epoch:
-                self._fail(f"{name} is said to acknowledge epoch {result.epoch}, never applied it")
 
     def _converged(self) -> bool:
         manager = self.manager
@@ -406,6 +370,8 @@ class Simulation:
         command = ActivationCommand(self._request_id, requester="simulation", **fields)  # type: ignore[arg-type]
         self.commands[self._request_id] = _Command(command, self.manager_generation)
         self._trace.update(f"C{command}".encode())
+        manager_id = f"m{self.manager_generation}"
+        self.invariants.command(command, manager_id, self.manager.live_nodes, self.now)
         self._manager_call(lambda m: m.receive_command(command, self.now))
         return self._request_id
 
@@ -436,7 +402,7 @@ class Simulation:
         def restart() -> None:
             node.generation += 1
             node.protocol = self._participant(node.name, node.generation)
-            node.alive, node.last_applied, node.next_wake = True, 0, 0.0
+            node.alive, node.next_wake = True, 0.0
             self._run_participant(index, node.protocol.announce(self.now))
             self._wake(index, self.now + self.rng.random() * node.protocol.heartbeat_period)
 
@@ -445,6 +411,7 @@ class Simulation:
     def _restart_manager(self, down_for: float) -> None:
         if self.manager is None:
             return
+        self.invariants.manager_crashed(self.manager.live_nodes, self.now)
         self.manager = None
 
         def restart() -> None:
@@ -559,7 +526,7 @@ class Simulation:
                 self._fail(f"request {request} ({asked.command}) was never answered")
         report.commands = len(self.commands)
         report.answers = sum(asked.answer is not None for asked in self.commands.values())
-        report.aborted_atomic = len(self.aborted)
+        report.aborted_atomic = len(self.invariants.aborted)
         report.messages = self.counters.messages
         report.events = self._events
         report.wall_time = time.perf_counter() - started
@@ -577,11 +544,6 @@ class Simulation:
         node = self.nodes[index]
         self._run_participant(index, node.protocol.announce(self.now))
         self._wake(index, self.now + self.rng.random() * node.protocol.heartbeat_period)
-
-
-def _generation_of(state: LayerState) -> int:
-    """The manager generation that published `state` (its id is "m<generation>")."""
-    return int(state.manager_id[1:] or 0)
 
 
 def simulate(scenario: Scenario) -> SimulationReport:
@@ -607,6 +569,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--crashes", type=int, default=Faults.crashes)
     parser.add_argument("--partitions", type=int, default=Faults.partitions)
     parser.add_argument("--manager-restarts", type=int, default=Faults.manager_restarts)
+    parser.add_argument(
+        "--check-all",
+        action="store_true",
+        help=f"check also what the protocol is known to break ({', '.join(sorted(KNOWN_BROKEN))})",
+    )
     args = parser.parse_args(argv)
     faults = Faults(
         loss=args.loss,
@@ -618,7 +585,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     failed = 0
     for seed in range(args.seed, args.seed + args.seeds):
         try:
-            report = simulate(Scenario(args.participants, seed, faults=faults))
+            checked = ALL if args.check_all else ALL - KNOWN_BROKEN
+            report = simulate(Scenario(args.participants, seed, faults=faults, checked=checked))
         except InvariantViolation as violation:
             print(f"FAILED {violation}", file=sys.stderr)
             failed += 1
