@@ -17,11 +17,12 @@ from tests.ros.test_cli import contextros
 def test_an_atomic_command_whose_manager_dies_ends_within_its_timeout(
     client: LayerClient, processes: ProcessGroup
 ) -> None:
-    voter = processes.participant("d1", "--veto-sleep", "3")  # the vote stays open
-    manager = processes.manager("--liveness-timeout", LIVENESS)
+    voter = processes.participant("d1")
+    manager = processes.manager("--liveness-timeout", "5")
     client.wait_for_manager(15.0)
     wait_registry(client, lambda r: len(r.participants) == 1 and not r.recovering)
     settle(client, "Indoor")
+    voter.signal(signal.SIGSTOP)  # it cannot vote: the vote stays open until the kill
     threading.Timer(1.5, manager.signal, args=(signal.SIGKILL,)).start()
     started = time.monotonic()
     done = contextros("activate", "Night", "--atomic", "--timeout", "2")
@@ -30,7 +31,7 @@ def test_an_atomic_command_whose_manager_dies_ends_within_its_timeout(
     assert done.returncode == 1, done
     assert "unknown" in done.stderr, done.stderr
     assert took < 2 + REPLY_MARGIN + 2.5, f"took {took:.1f} s (the command starts in ~1 s)"
-    del voter
+    voter.signal(signal.SIGCONT)
 
 
 def test_a_command_waiting_past_its_timeout_is_refused_never_executed(
