@@ -2,13 +2,15 @@
 
 `/base` has a parameter `max_speed` (double, 1.0) and refuses values above 5.0; the
 lifecycle node `/propeller` activates unless its parameter `refuse_activation` is true.
-Prints one JSON line per event (`ready`, `parameter`, `transition`).
+Prints one JSON line per event (`ready`, `parameter`, `transition`). `--slow-set S`: each
+parameter change of `/base` takes S seconds.
 """
 
 from __future__ import annotations
 
 import json
 import sys
+import time
 from typing import Any
 
 import rclpy
@@ -24,12 +26,14 @@ def emit(event: str, **fields: object) -> None:
 
 
 class Base(Node):
-    def __init__(self) -> None:
+    def __init__(self, slow_set: float = 0.0) -> None:
         super().__init__("base")
+        self.slow_set = slow_set
         self.declare_parameter("max_speed", 1.0)
         self.add_on_set_parameters_callback(self.check)
 
     def check(self, parameters: list[Any]) -> SetParametersResult:
+        time.sleep(self.slow_set)
         for parameter in parameters:
             if parameter.name == "max_speed" and parameter.value > 5.0:
                 return SetParametersResult(successful=False, reason="above 5.0 m/s is unsafe")
@@ -65,7 +69,8 @@ class Propeller(LifecycleNode):
 
 def main() -> None:
     rclpy.init(args=sys.argv)
-    nodes: list[Node] = [Base(), Propeller()]
+    slow_set = float(sys.argv[sys.argv.index("--slow-set") + 1]) if "--slow-set" in sys.argv else 0
+    nodes: list[Node] = [Base(slow_set), Propeller()]
     emit("ready")
     spin_nodes(nodes)
     rclpy.try_shutdown()
