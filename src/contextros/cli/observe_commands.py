@@ -13,8 +13,6 @@ from contextros.errors import LayerError
 
 USAGE = 2
 DIFFERENT = 1  # `rules replay --strict`: the replay differs from the recording
-INTERRUPTED = 130  # Ctrl-C
-PIPE_CLOSED = 141  # the reader of our output went away (128 + SIGPIPE, as a shell reports)
 # rules.replay.TIME_TOLERANCE (importing it here would import the protocol for every command).
 TIME_TOLERANCE = 0.25
 # The manager's node name (contextros.ros.topics.MANAGER_NODE_NAME, which imports rclpy).
@@ -254,10 +252,6 @@ def _dashboard(args: argparse.Namespace) -> int:
 
 
 def run_replay(args: argparse.Namespace) -> int:
-    return _quietly_interrupted(_run_replay, args)
-
-
-def _run_replay(args: argparse.Namespace) -> int:
     from contextros.cli.ros_arguments import namespace_problem
     from contextros.recording import RecordingError
     from contextros.rules import RuleSet
@@ -286,8 +280,11 @@ def _run_replay(args: argparse.Namespace) -> int:
         return USAGE
     if replayed is None:
         return USAGE
-    result, recorded, start, end, damage = replayed
-    differences = compare(result, recorded, rules, start=start, tolerance=args.tolerance)
+    result, recorded, start, end, damage, live = replayed
+    # None: the recording holds no state of a live manager, nothing to compare with.
+    differences = (
+        compare(result, recorded, rules, start=start, tolerance=args.tolerance) if live else None
+    )
     if args.plot:
         from contextros.recording.timeline import write_timeline
 
@@ -372,11 +369,12 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
                 replay.manual(item.time, active, requester, str(state.reason))
     result = replay.finish(end)
     result.notes[:0] = notes
-    return result, recorded, start, end, damages[0] if damages else None
+    live = first_state is not None
+    return result, recorded, start, end, damages[0] if damages else None, live
 
 
 def _replay_json(
-    result: Any, recorded: list[Any], differences: list[Any], start: float, damage: Any
+    result: Any, recorded: list[Any], differences: list[Any] | None, start: float, damage: Any
 ) -> dict[str, Any]:
     return {
         "switches": [
@@ -402,7 +400,10 @@ def _replay_json(
             }
             for s in recorded
         ],
-        "differences": [
+        # null: the recording holds no state of a live manager to compare with
+        "differences": None
+        if differences is None
+        else [
             {"kind": d.kind, "time": round(d.time - start, 4), "text": d.text} for d in differences
         ],
         "truncated": None
@@ -421,11 +422,13 @@ def _replay_json(
 def _print_replay(
     result: Any,
     recorded: list[Any],
-    differences: list[Any],
+    differences: list[Any] | None,
     start: float,
     end: float,
     args: argparse.Namespace,
 ) -> None:
+    """The switches in time order, then how they compare with the recorded states
+    (`differences` None: the recording holds no state of a live manager)."""
     for note in result.notes:
         print(f"note: {note}", file=sys.stderr)
     print(f"{args.recording}: {end - start:.1f} s replayed through {', '.join(args.rules)}")
@@ -440,7 +443,10 @@ def _print_replay(
     made = sum(1 for s in result.switches if s.requester.startswith("rule "))
     print(f"{made} switches by these rules; the recording has {by_rules} made by the live rules")
     states = f"{len(recorded)} state{'s' if len(recorded) != 1 else ''} recorded live"
-    if differences:
+    if differences is None:
+        topic = _resolve(args.namespace, "contextros/state")
+        print(f"no state of a live manager on {topic} in the recording: nothing to compare")
+    elif differences:
         count = len(differences)
         print(f"{count} difference{'s' if count != 1 else ''} from the {states}:")
         for difference in differences:
@@ -458,10 +464,6 @@ def _print_replay(
 
 
 def run_repair(args: argparse.Namespace) -> int:
-    return _quietly_interrupted(_run_repair, args)
-
-
-def _run_repair(args: argparse.Namespace) -> int:
     from contextros.recording import RecordingError
     from contextros.recording.repair import repair_recording
 
@@ -487,23 +489,6 @@ def _run_repair(args: argparse.Namespace) -> int:
         + (f" ({topics})" if topics else "")
     )
     return 0
-
-
-def _quietly_interrupted(run: Any, args: argparse.Namespace) -> int:
-    """`run(args)`, ending quietly on Ctrl-C (130) and when our reader closes the pipe
-    (`| head`: 141), as the docs say."""
-    try:
-        status: int = run(args)
-        sys.stdout.flush()
-    except KeyboardInterrupt:
-        return INTERRUPTED
-    except BrokenPipeError:
-        # Nothing more can be written; keep Python from complaining at exit.
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
-        os.close(devnull)
-        return PIPE_CLOSED
-    return status
 
 
 def _missing(command: str, error: ImportError) -> int:
