@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export OPENBLAS_NUM_THREADS ?= 1
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core fuzz wheel bench lint clean observe dashboard
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core explore fuzz wheel bench lint clean observe dashboard
 
 all: test
 
@@ -113,6 +113,12 @@ test: ros cpp $(VENV)/.stamp-dev $(BROWSER)
 test-slow: ros cpp $(VENV)/.stamp-dev
 	$(BYTECODE) src tests examples >/dev/null
 	$(PY) -m pytest -q -m slow
+
+# Every interleaving of the pure protocol up to a larger bound than `make test` explores
+# (docs/protocol.md, "Exhaustive exploration"): states explored, depth and time.
+explore: $(VENV)/.stamp-dev
+	$(PY) -m contextros.protocol.explorer --participants 2 --depth 6
+	$(PY) -m contextros.protocol.explorer --participants 3 --depth 5
 
 # The layer-language fuzzers on many more inputs than `make test` gives them.
 fuzz: $(VENV)/.stamp-dev

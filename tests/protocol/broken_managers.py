@@ -35,8 +35,10 @@ class ReusesEpochs(ManagerProtocol):
 class ClaimsEveryNode(ManagerProtocol):
     """Answers a synchronous command at once, claiming every live node applied it."""
 
-    def receive_command(self, command: ActivationCommand, now: float) -> list[ManagerAction]:
-        actions = super().receive_command(command, now)
+    def receive_command(
+        self, command: ActivationCommand, now: float, received: float | None = None
+    ) -> list[ManagerAction]:
+        actions = super().receive_command(command, now, received)
         if not command.synchronous:
             return actions
         self._pending.clear()
