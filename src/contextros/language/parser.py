@@ -43,12 +43,11 @@ from contextros.language.syntax import (
     SourceLine,
     char_of_byte,
 )
-from contextros.language.words import found_text, misspelt
+from contextros.language.words import RELATIONS, found_text, misspelt
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
 _Where = Callable[[int, int], tuple[int, int]]
 
-RELATIONS = ("excludes", "requires", "after")
 HOOK_EVENTS = ("activate", "deactivate")
 
 _NAME = r"[^\W\d]\w*"

@@ -4,6 +4,9 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+# A layer's relations to others, in the order a declaration lists them (both flavours).
+RELATIONS = ("excludes", "requires", "after")
+
 
 def misspelt(word: str, keywords: Iterable[str]) -> str:
     """The keyword `word` is one edit away from ('' if none, or if it is one)."""

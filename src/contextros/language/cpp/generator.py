@@ -20,7 +20,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 from contextros.language.checker import checked
-from contextros.language.cpp.parser import CppFunction, CppHook, CppLayerFile
+from contextros.language.cpp.tree import CppFunction, CppHook, CppLayerFile
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink, LayerSyntaxError
 from contextros.language.syntax import Function, LayerDecl
 
