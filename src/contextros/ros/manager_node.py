@@ -470,7 +470,7 @@ class LayerManagerNode(Node):
         else:
             self._responses.answer(request_id, result)
             if not result.success:
-                self.log.warning(f"refused: {result.message}")
+                self._log_failure(result)
 
     # -- rules ------------------------------------------------------------------------------
 
@@ -496,7 +496,11 @@ class LayerManagerNode(Node):
         }
 
     def _rule_outcome(self, firing: Firing, result: ActivationResult) -> None:
-        target = ", ".join(firing.activate) or "without " + ", ".join(firing.deactivate)
+        # "to Night", "to Night, Slow off", "Slow off": what the firing asked for.
+        asked = [f"to {', '.join(firing.activate)}"] if firing.activate else []
+        asked += [f"{', '.join(firing.deactivate)} off"] if firing.deactivate else []
+        target = ", ".join(asked).removeprefix("to ") if firing.activate else ", ".join(asked)
+        switched = "switched to" if firing.activate else "switched"
         if result.success and result.message.startswith("no change"):
             outcome = "already in force (no change)"
             self.log.info(f"rule {firing.rule}: {target} {outcome}")
@@ -506,20 +510,27 @@ class LayerManagerNode(Node):
                 f"{result.elapsed * 1000:.1f} ms"
             )
             self.log.info(
-                f"rule {firing.rule} switched to {target}: {len(result.acknowledged)} nodes "
+                f"rule {firing.rule} {switched} {target}: {len(result.acknowledged)} nodes "
                 f"applied it in {result.elapsed * 1000:.1f} ms (epoch {result.epoch}, "
                 f"[{', '.join(result.active)}])"
             )
         else:
             outcome = f"refused: {result.message} (tried again after the next state)"
             self.log.warning(
-                f"rule {firing.rule} could not switch to {target}: {result.message} "
+                f"rule {firing.rule} could not {switched.replace('switched', 'switch')} "
+                f"{target}: {result.message} "
                 "(tried again after the next state)"
             )
         if self.rules is not None:
             self.rules.outcome(firing, outcome)
             if not result.success:
                 self.rules.refused(firing)
+
+    def _log_failure(self, result: ActivationResult) -> None:
+        """A refused command changed nothing; a published epoch that was not confirmed is
+        not a refusal (its nodes may well have applied it since)."""
+        published = result.message.startswith("epoch ")
+        self.log.warning(f"{'answered' if published else 'refused'}: {result.message}")
 
     def _flush_logs(self) -> None:
         logs, self._postponed_logs = self._postponed_logs, []
@@ -601,7 +612,7 @@ class LayerManagerNode(Node):
                 self._responses.answer(action.request_id, action.result)
                 self._flush_logs()
                 if not action.result.success:  # logged after the answer: it costs ~0.3 ms
-                    self.log.warning(f"refused: {action.result.message}")
+                    self._log_failure(action.result)
             elif isinstance(action, ParticipantJoined):
                 verb = "restarted" if action.restarted else "joined"
                 self.log.info(f"participant {action.node} {verb}")
