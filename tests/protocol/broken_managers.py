@@ -4,6 +4,7 @@ each (their checks can fail)."""
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 
 from contextros.protocol import (
     ActivationCommand,
@@ -16,6 +17,7 @@ from contextros.protocol import (
     PublishState,
     Reply,
 )
+from contextros.protocol.manager import Key
 
 
 class ReusesEpochs(ManagerProtocol):
@@ -73,3 +75,15 @@ class ForgetsParticipants(ManagerProtocol):
         super().__init__(now, settings, saved_state)
         self._participants.clear()
         self._hosted.clear()
+
+
+class WaitsForOneNode(ManagerProtocol):
+    """Takes a synchronous activation for done once one node applied it."""
+
+    def _settle_pending(
+        self, now: float, examine: Iterable[Key] | None = None
+    ) -> list[ManagerAction]:
+        for pending in self._pending:
+            if pending.acknowledged:
+                pending.waiting.clear()
+        return super()._settle_pending(now, examine)

@@ -26,7 +26,12 @@ from contextros.protocol.invariants import (
     SYNC_NAMES_KNOWN,
     InvariantViolation,
 )
-from tests.protocol.broken_managers import ForgetsParticipants, ForgetsProposals, ReusesEpochs
+from tests.protocol.broken_managers import (
+    ForgetsParticipants,
+    ForgetsProposals,
+    ReusesEpochs,
+    WaitsForOneNode,
+)
 
 ATOMIC_VETOED, ATOMIC, SYNCHRONOUS = SCRIPT
 
@@ -66,12 +71,33 @@ def test_a_state_reached_by_two_orders_is_one_state() -> None:
     assert after() == fingerprint(world)
 
 
-def test_a_broken_manager_is_caught_with_a_shortest_trace() -> None:
-    result = explore(Bounds(depth=3, manager_class=ReusesEpochs))
+@pytest.mark.parametrize(
+    ("bounds", "complaint", "steps"),
+    [
+        # A command publishing its change under epoch 1 again.
+        (Bounds(depth=3, manager_class=ReusesEpochs), "names two layer sets", 1),
+        # The synchronous command, its state to one node, its status back, a tick.
+        (
+            Bounds(
+                depth=5,
+                commands=(SYNCHRONOUS,),
+                node_crashes=0,
+                manager_restarts=0,
+                manager_class=WaitsForOneNode,
+            ),
+            "live when it arrived",
+            4,
+        ),
+    ],
+)
+def test_a_broken_manager_is_caught_with_a_shortest_trace(
+    bounds: Bounds, complaint: str, steps: int
+) -> None:
+    result = explore(bounds)
     assert result.violation is not None
-    assert "names two layer sets" in str(result.violation)
-    assert len(result.trace) == 1  # a command publishing its change under epoch 1 again
-    assert "VIOLATION at depth 1" in result.summary()
+    assert complaint in str(result.violation)
+    assert len(result.trace) == steps
+    assert f"VIOLATION at depth {steps}" in result.summary()
 
 
 def test_a_manager_reusing_a_proposed_epoch_after_a_crash_is_caught() -> None:

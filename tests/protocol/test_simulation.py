@@ -34,6 +34,7 @@ from tests.protocol.broken_managers import (
     ForgetsParticipants,
     ForgetsProposals,
     ReusesEpochs,
+    WaitsForOneNode,
 )
 
 SMALL = 6
@@ -79,7 +80,11 @@ def test_messages_per_clean_activation_are_one_state_and_one_status_per_node() -
 
 @pytest.mark.parametrize(
     ("broken", "complaint"),
-    [(ReusesEpochs, "names two layer sets"), (ClaimsEveryNode, "never applied it")],
+    [
+        (ReusesEpochs, "names two layer sets"),
+        (ClaimsEveryNode, "never applied it"),
+        (WaitsForOneNode, "live when it arrived"),
+    ],
 )
 def test_a_broken_manager_is_caught_and_the_seed_named(
     broken: type[ManagerProtocol], complaint: str

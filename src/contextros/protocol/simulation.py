@@ -6,21 +6,27 @@ A run has four phases: start-up (every participant announces, the manager recove
 clean phase of back-to-back synchronous activations (measured: messages, manager CPU and
 time per activation), a fault phase (commands of every kind while the faults happen) and
 a heal (faults stop, crashed nodes are back): the system must converge, and a last
-synchronous activation must be acknowledged by every node. Checked all along:
+synchronous activation must be acknowledged by every node. Checked all along (the checks
+of `contextros.protocol.invariants`, shared with the explorer):
 
-- no epoch names two layer sets (among states published and states applied);
+- no epoch names two layer sets (among states published and applied, and proposals);
 - no participant goes back: each incarnation applies strictly increasing epochs;
 - an aborted atomic activation changed nothing: its epoch is never published nor applied;
 - answers are exact: one answer per command; a success carries its epoch's layers and every
-  node it names as acknowledging applied that epoch; in the clean phases every
-  synchronous activation succeeds, acknowledged by all N nodes;
+  node it names as acknowledging applied that epoch; a synchronous success names every node
+  live when the command arrived (not dropped since) and, after a restart, every node the
+  manager knew live before it; in the clean phases every synchronous activation succeeds,
+  acknowledged by all N nodes;
+- a node votes once per proposal, and its application's vetoes are asked once (the
+  manager's state file and the vetoes are handled as the adapter does: `adapter_model`);
 - after the heal, within `converge_within` seconds, every node is live in the manager and
   applied its epoch.
 
     python -m contextros.protocol.simulation --seed 123 --participants 1000
 
 A violation raises `InvariantViolation`, whose message names the seed and the command that
-replays it. Time is simulated (no sleeping); the manager's CPU is measured for real.
+replays it. What the protocol is known to break (`invariants.KNOWN_BROKEN`) is left out
+unless `--check-all`. Time is simulated (no sleeping); the manager's CPU is measured for real.
 """
 
 from __future__ import annotations
@@ -53,7 +59,9 @@ from contextros.protocol.invariants import (
     ALL,
     KNOWN_BROKEN,
     Invariants,
-    InvariantViolation,
+)
+from contextros.protocol.invariants import (
+    InvariantViolation as InvariantViolation,  # raised by `simulate`
 )
 from contextros.protocol.manager import ManagerProtocol, ManagerSettings
 from contextros.protocol.participant import DEFAULT_HEARTBEAT_PERIOD, ParticipantProtocol
