@@ -182,6 +182,9 @@ class ContextParticipant:
     def add_veto(self, veto: Veto) -> None:
         """Let `veto(state)` refuse an atomic activation's proposed state with a reason.
 
+        It is called once per proposal, in a worker thread (the executor goes on), and
+        must neither switch layers nor spin the node; the vote follows its answer, and the
+        activation aborts if that comes after the command's timeout (docs/protocol.md).
         Besides, the node votes no while a critical section is open and when the proposed
         layers break a relation it declares."""
         self._vetoes.append(veto)
