@@ -228,6 +228,21 @@ BROKEN = {
 }
 
 
+def refused_manager(*paths: Path) -> subprocess.CompletedProcess[str]:
+    """`contextros manager --layers PATHS...`, which must refuse them (exit 2) at once."""
+    try:  # (a manager that accepts the files runs until stopped)
+        manager = subprocess.run(
+            [sys.executable, "-m", "contextros", "manager", "--layers", *map(str, paths)],
+            capture_output=True,
+            text=True,
+            timeout=20,
+        )
+    except subprocess.TimeoutExpired as running:
+        pytest.fail(f"the manager ran with files `check` refuses: {running.stdout!r}")
+    assert manager.returncode == 2, manager.stderr
+    return manager
+
+
 @pytest.mark.parametrize("name", sorted(BROKEN))
 def test_the_manager_refuses_every_file_check_refuses_and_lists_every_error(
     name: str, tmp_path: Path
@@ -238,18 +253,17 @@ def test_the_manager_refuses_every_file_check_refuses_and_lists_every_error(
     checked = contextros("check", str(path))
     errors = [line for line in heads(checked.stdout) if ": error: " in line]
     assert (checked.returncode, len(errors)) == (1, count), checked.stdout
-    try:  # (a manager that accepts the file runs until stopped)
-        manager = subprocess.run(
-            [sys.executable, "-m", "contextros", "manager", "--layers", str(path)],
-            capture_output=True,
-            text=True,
-            timeout=20,
-        )
-    except subprocess.TimeoutExpired as running:
-        pytest.fail(f"the manager ran with errors `check` reports: {errors}; {running.stdout!r}")
-    assert manager.returncode == 2, manager.stderr
+    manager = refused_manager(path)
     assert [line for line in heads(manager.stderr) if ": error: " in line] == errors
     assert "more error" not in manager.stderr, "every error listed, not a count"
+
+
+def test_the_manager_refuses_a_file_that_is_no_layer_file_as_check_does(tmp_path: Path) -> None:
+    module = tmp_path / "robot.py"
+    module.write_text("print('a node, not its layers')\n", encoding="utf-8")
+    assert contextros("check", str(module)).returncode == 1
+    manager = refused_manager(module)
+    assert f"{module}: error: a Python module, not a layer file" in manager.stderr
 
 
 def test_check_together_refuses_what_the_manager_refuses_in_several_files(tmp_path: Path) -> None:
@@ -265,8 +279,7 @@ def test_check_together_refuses_what_the_manager_refuses_in_several_files(tmp_pa
         f"{robot}:1:23: error: sensor_msgs/msg/BatteryState (the type of topic 'battery') has "
         "no field 'percent'"
     ]
-    manager = contextros("manager", "--layers", *files)
-    assert manager.returncode == 2
+    manager = refused_manager(sensors, robot)
     assert heads(manager.stderr)[1:] == heads(together.stdout)
 
 

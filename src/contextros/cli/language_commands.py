@@ -81,8 +81,9 @@ def register(commands: Any) -> None:
 _KINDS = {".py": "a Python module", ".cpp": "C++ source", ".hpp": "a C++ header", ".h": "a header"}
 
 
-def _not_layers(path: Path) -> str:
-    """Why `path` is not something to check ('' when it is a layer file)."""
+def not_layers(path: Path) -> str:
+    """Why `path` is not something to check ('' when it is a layer file, or a directory
+    holding some); the manager refuses its --layers files for the same reasons."""
     if path.is_dir():
         return "" if any(path.rglob("*.layers")) else "a directory with no *.layers file in it"
     if path.name.endswith(".layers"):
@@ -108,11 +109,11 @@ def run_check(args: argparse.Namespace) -> int:
 
     errors = 0
     for name in args.files:
-        problem = _not_layers(Path(name))
+        problem = not_layers(Path(name))
         if problem:
             print(f"{name}: error: {problem}; nothing checked")
             errors += 1
-    paths = _layer_files([n for n in args.files if not _not_layers(Path(n))])
+    paths = _layer_files([n for n in args.files if not not_layers(Path(n))])
     for group in [paths] if args.together else [[path] for path in paths]:
         diagnostics = check_files(group, args.language, installed_message_type)
         for path in group if args.activation else ():

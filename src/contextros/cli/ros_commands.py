@@ -257,6 +257,7 @@ def run_manager(args: argparse.Namespace) -> int:
         import dataclasses
 
         from contextros.bindings import Bindings
+        from contextros.cli.language_commands import not_layers
         from contextros.language.checker import check_files
         from contextros.language.declarations import declarations_from_files
         from contextros.language.diagnostics import LayerLanguageError
@@ -266,7 +267,11 @@ def run_manager(args: argparse.Namespace) -> int:
         # Refused: what `contextros check` refuses in each file, and what the files together
         # have (docs/rules.md), every error listed.
         found = check_files(args.layer_files, message_types=installed_message_type)
-        errors = "\n".join(d.render() for d in found if d.is_error)
+        not_files = [(name, not_layers(Path(name))) for name in args.layer_files]
+        errors = "\n".join(
+            [f"{name}: error: {why}" for name, why in not_files if why]
+            + [d.render() for d in found if d.is_error]
+        )
         if errors:
             print(f"contextros manager: the layer files have errors:\n{errors}", file=sys.stderr)
             return USAGE
