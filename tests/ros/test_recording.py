@@ -19,6 +19,7 @@ from contextros.recording import read_recording
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
 from tests.ros.system import settle, wait_registry
+from tests.ros.test_cli import contextros
 
 
 def record(*args: str) -> subprocess.Popen[str]:
@@ -135,46 +136,27 @@ def test_the_replay_composes_as_the_live_manager_and_strict_fails_where_it_would
         if recorder is not None and recorder.poll() is None:
             recorder.kill()
         group.kill_all()
-    same = replay_strict(output, layers)
+    same = contextros("rules", "replay", "--strict", str(output), "--rules", str(layers))
     assert same.returncode == 0, same.stdout + same.stderr
     assert "no difference from the 2 states recorded live" in same.stdout, same.stdout
     unordered = tmp_path / "unordered.layers"
     unordered.write_text(ROAD_LAYERS.replace(" after Road, Grass", ""), encoding="utf-8")
-    other = replay_strict(output, unordered)
+    other = contextros("rules", "replay", "--strict", str(output), "--rules", str(unordered))
     assert other.returncode == 1, other.stdout + other.stderr
     assert "1 difference from the 2 states recorded live:" in other.stdout, other.stdout
     assert "order: live composed [Road, LowBattery] at " in other.stdout, other.stdout
     assert "the replay [LowBattery, Road]" in other.stdout
 
 
-def replay_strict(recording: Path, layers: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "contextros",
-            "rules",
-            "replay",
-            "--strict",
-            str(recording),
-            "--rules",
-            str(layers),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-
-
 def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
     client: LayerClient, tmp_path: Path
 ) -> None:
     """20 `contextros record` processes at once (forked from one interpreter that imported
-    the command) on a 50 Hz topic whose messages carry their
-    send time, each SIGKILLed at its own random moment: 4 within 0.3 s of subscribing,
-    16 up to 2.5 s after their file first held a message. Each file reads (the truncation
-    reported), holds the topic's schema, and holds the messages up to one second before
-    the kill; repaired, the upstream mcap reader reads it whole."""
+    the command) on a 50 Hz topic whose messages carry their send time, each SIGKILLed at
+    its own random moment: 4 within 0.3 s of subscribing, 16 up to 2.5 s after their file
+    first held a message. Each file reads (the truncation reported), holds the topic's
+    schema, and holds the messages up to one second before the kill; repaired, the
+    upstream mcap reader reads it whole."""
     from mcap.reader import make_reader
     from std_msgs.msg import Float64
 

@@ -173,3 +173,10 @@ def test_a_switch_made_on_readings_the_recording_lacks_is_late_but_no_difference
     assert any("no reading of temperature from before 0.500 s" in n for n in result.notes)
     # Once the recorded readings could have caused it, a time apart is a difference again.
     assert [d.kind for d in compare(result, [state(1.9, "Hot")], rules, start=0.0)] == ["time"]
+
+
+def test_the_command_line_default_tolerance_is_the_replays() -> None:
+    from contextros.cli import observe_commands
+    from contextros.rules import replay
+
+    assert observe_commands.TIME_TOLERANCE == replay.TIME_TOLERANCE
