@@ -197,7 +197,6 @@ def _damage(name: str, stream: BinaryIO, good: int, error: Exception) -> Damage:
     if size <= len(MAGIC):
         what = "the file is empty" if size == 0 else "the file ends in its magic bytes"
         return Damage(name, size, f"{what} (truncated: was the recorder killed?)", True)
-    good = max(good, len(MAGIC))
     stream.seek(good)
     header = stream.read(_RECORD_HEADER)
     end = good + _RECORD_HEADER + int.from_bytes(header[1:], "little")
