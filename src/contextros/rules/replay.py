@@ -8,7 +8,8 @@ first tick after it, as live). Commands are asynchronous here, so a switch takes
 once instead of after the nodes' acknowledgements (milliseconds live).
 
 States in the recording that no rule caused (an operator's commands) are played too: they
-are part of the context the rules saw.
+are part of the context the rules saw. `compare` then lists every difference between the
+replayed states and those the live manager published.
 """
 
 from __future__ import annotations
@@ -71,7 +72,9 @@ class ReplayResult:
 
 class RuleReplay:
     """Feed it messages (`message`) and recorded manual states (`manual`) in time order,
-    then `finish`; `result` holds the switches it made."""
+    then `finish`; `result` holds the switches it made. `declarations` are the
+    participants' (from the recorded statuses), `layer_files` the layer files' relations,
+    as `contextros manager --layers` takes them (`declarations_from_files`)."""
 
     def __init__(
         self,
