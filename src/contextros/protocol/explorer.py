@@ -327,43 +327,53 @@ def _canonical(value: Any) -> Any:
     and settings left out: derived or constant), dictionaries in their order (the protocol
     may depend on it), sets without one; immutable values whose equality covers every
     field as they are."""
-    if value is None or isinstance(value, (bool, int, float, str)):
-        return value
     kind = type(value)
-    if _is_value(kind):
+    how = _HOW.get(kind)
+    if how is None:
+        how = _HOW[kind] = _how(kind)
+    if how is _AS_IS:
         return value
-    if kind is LayerState:  # its equality leaves out the manager id and the stamp
-        return (value, value.manager_id, value.stamp)
-    if isinstance(value, (tuple, list, deque)):
-        if all(type(item) in _PLAIN for item in value):
-            return tuple(value)
+    if how is _ITEMS:
         return tuple(_canonical(item) for item in value)
-    if isinstance(value, (set, frozenset)):
+    if how is _SET:
         return frozenset(_canonical(item) for item in value)
-    if isinstance(value, dict):
+    if how is _DICT:
         return tuple((_canonical(k), _canonical(v)) for k, v in value.items())
-    kept = (
-        (name, _canonical(item))
-        for name, item in vars(value).items()
-        if name != "settings" and not name.endswith("_cache")
-    )
+    if how is _STATE:  # its equality leaves out the manager id and the stamp
+        return (value, value.manager_id, value.stamp)
+    fields = vars(value)
+    skipped = _SKIPPED.get(kind)
+    if skipped is None:  # learnt from the first object of the class
+        skipped = _SKIPPED[kind] = frozenset(
+            name for name in fields if name == "settings" or name.endswith("_cache")
+        )
+    kept = ((name, _canonical(item)) for name, item in fields.items() if name not in skipped)
     return (kind.__name__, *kept)
 
 
-_VALUE_TYPES: dict[type, bool] = {}
-_PLAIN = frozenset({bool, int, float, str, type(None)})
+_AS_IS, _ITEMS, _SET, _DICT, _STATE, _OBJECT = "as is", "items", "set", "dict", "state", "object"
+_HOW: dict[type, str] = {}
+_SKIPPED: dict[type, frozenset[str]] = {}
 
 
-def _is_value(kind: type) -> bool:
-    """A frozen dataclass whose equality (and hash) covers every field."""
-    known = _VALUE_TYPES.get(kind)
-    if known is None:
+def _how(kind: type) -> str:
+    """How `_canonical` takes a value of this type."""
+    if kind in (bool, int, float, str, type(None)):
+        return _AS_IS
+    if kind is LayerState:
+        return _STATE
+    if issubclass(kind, (tuple, list, deque)):
+        return _ITEMS
+    if issubclass(kind, (set, frozenset)):
+        return _SET
+    if issubclass(kind, dict):
+        return _DICT
+    if dataclasses.is_dataclass(kind):
         params = getattr(kind, "__dataclass_params__", None)
-        known = bool(params and params.frozen and params.eq) and all(
-            f.compare for f in dataclasses.fields(kind)
-        )
-        _VALUE_TYPES[kind] = known
-    return known
+        complete = all(f.compare for f in dataclasses.fields(kind))
+        if params is not None and params.frozen and params.eq and complete:
+            return _AS_IS  # a frozen dataclass whose equality (and hash) covers every field
+    return _OBJECT
 
 
 def fingerprint(world: World) -> int:
