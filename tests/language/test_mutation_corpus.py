@@ -82,6 +82,7 @@ class Mutation:
     replacement: str  # '' for a deletion
     next_offset: int  # of the token after the mutated one (the end of the file if none)
     partner: int | None  # of the bracket the mutated one pairs with
+    cut: int  # characters replaced: the token's (a deleted word takes its blanks along)
 
     @property
     def kind(self) -> str:
@@ -89,8 +90,7 @@ class Mutation:
         return f"{self.original!r} {how}"
 
     def apply(self, source: str) -> str:
-        end = self.offset + len(self.original)
-        return source[: self.offset] + self.replacement + source[end:]
+        return source[: self.offset] + self.replacement + source[self.offset + self.cut :]
 
 
 def _is_cpp(path: Path) -> bool:
@@ -117,9 +117,14 @@ def mutations(path: Path, source: str) -> list[Mutation]:
         after = [m for m in found[index + 1 :] if not m.group().startswith(("//", "/*", "#"))]
         following = after[0].start() if after else len(source)
         wrong = REPLACEMENTS.get(text) or (text[:-1] if len(text) > 2 else text + "x")
+        blanks = re.match(r"[ \t]*", source[match.end() :])
+        after = len(blanks.group()) if blanks and text[0].isalpha() else 0
+        partner = partners.get(match.start())
         for replacement in ("", wrong):
-            partner = partners.get(match.start())
-            result.append(Mutation(str(path), match.start(), text, replacement, following, partner))
+            cut = len(text) + (0 if replacement else after)
+            result.append(
+                Mutation(str(path), match.start(), text, replacement, following, partner, cut)
+            )
     return result
 
 
@@ -146,7 +151,7 @@ def problem(path: Path, source: str, mutation: Mutation) -> str | None:
     first = diagnostics[0]
     at = line_col(source, mutation.offset)
     # The token after the mutation, in the mutated text.
-    shift = len(mutation.replacement) - len(mutation.original)
+    shift = len(mutation.replacement) - mutation.cut
     upto = line_col(mutated, mutation.next_offset + shift)
     shown = f"{mutation.kind} at {at[0]}:{at[1]}: first {first.line}:{first.col} {first.message}"
     if not first.is_error:

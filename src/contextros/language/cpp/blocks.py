@@ -169,6 +169,17 @@ class BlockReader(Reader):
             if text == "on" and item_start and k + 1 < end and block[k + 1].text.isidentifier():
                 k = self._hook(scan, k)
                 continue
+            if (
+                item_start
+                and text.isidentifier()
+                and k + 2 < end
+                and block[k + 1].text in ("activate", "deactivate")
+                and block[k + 2].text == "{"
+            ):  # `onx activate { ... }`
+                event = block[k + 1].text
+                self.error(f"expected 'on {event} {{ ... }}', found {text!r}", token.start)
+                k += 2
+                continue
             if text in ("activate", "deactivate") and item_start and block[k + 1].text == "{":
                 self.error(
                     f"expected 'on' before {text!r}: a hook is 'on {text} {{ ... }}'", token.start
