@@ -153,8 +153,8 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
 ) -> None:
     """20 `contextros record` processes at once (forked from one interpreter that imported
     the command) on a 50 Hz topic whose messages carry their send time, each SIGKILLed at
-    its own random moment: 4 within 0.3 s of subscribing, 16 up to 2.5 s after their file
-    first held a message. Each file reads (the truncation reported), holds the topic's
+    its own random moment: 4 within 0.3 s of subscribing, 16 up to 2.5 s after all their
+    files held a message. Each file reads (the truncation reported), holds the topic's
     schema, and holds the messages up to one second before the kill; repaired, the
     upstream mcap reader reads it whole."""
     from mcap.reader import make_reader
@@ -185,9 +185,15 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
             output, log = tmp_path / f"{index}.mcap", tmp_path / f"{index}.log"
             recorders.append(KilledRecorder(pid, output, log, early, offset))
         deadline = time.monotonic() + 30
+        running = [r for r in recorders if not r.early]
         while any(r.killed_at is None for r in recorders) and time.monotonic() < deadline:
             for recorder in recorders:
-                recorder.kill_when_due()
+                if recorder.killed_at is None:
+                    recorder.watch()
+                    recorder.kill_when_due()
+            if running[0].anchor is None and all(r.receiving for r in running):
+                for recorder in running:
+                    recorder.anchor = time.time()
             time.sleep(0.01)
     finally:
         publishing.clear()
@@ -222,26 +228,29 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
 
 class KilledRecorder:
     """A recorder process and when to kill it: `offset` seconds after it logged its
-    subscription (early) or after its file first held a message."""
+    subscription (early), or after every other recorder's file held a message too (so
+    that their start-up, twenty processes discovering each other, is over)."""
 
     def __init__(self, pid: int, output: Path, log: Path, early: bool, offset: float) -> None:
         self.pid, self.output, self.log = pid, output, log
         self.early, self.offset = early, offset
         self.subscribed_size: int | None = None  # the file's size once it subscribed
+        self.receiving = False  # its file held a message
         self.anchor: float | None = None
         self.killed_at: float | None = None
 
-    def kill_when_due(self) -> None:
-        if self.killed_at is not None:
-            return
+    def watch(self) -> None:
         if self.subscribed_size is None:
             if "recording /kill_test/level" in self.log.read_text():
                 self.subscribed_size = self.output.stat().st_size
                 if self.early:
                     self.anchor = time.time()
-        elif self.anchor is None and self.output.stat().st_size > self.subscribed_size:
-            self.anchor = time.time()
-        if self.anchor is not None and time.time() >= self.anchor + self.offset:
+        elif not self.receiving:
+            self.receiving = self.output.stat().st_size > self.subscribed_size
+
+    def kill_when_due(self) -> None:
+        due = self.anchor is not None and time.time() >= self.anchor + self.offset
+        if self.killed_at is None and due:
             os.kill(self.pid, signal.SIGKILL)
             self.killed_at = time.time()
 
