@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import itertools
+import json
 import signal
 import time
 
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
 from tests.ros.system import start_system, wait_registry
+from tests.ros.test_cli import contextros
 
 
 def test_participant_started_before_the_manager_joins_when_it_appears(
@@ -125,6 +127,14 @@ def test_a_node_that_cannot_apply_a_state_is_named_at_once(
     assert refused.not_acknowledged == ("/stubborn",)
     assert "/stubborn (failed to apply: epoch" in refused.message
     assert "Night cannot be left now" in refused.message
+    # `status` says it refused, and why, not only that it lags (issue 24, item 7).
+    shown = contextros("status")
+    assert "REFUSED: /stubborn could not apply epoch" in shown.stdout, shown.stdout
+    assert "Night cannot be left now" in shown.stdout
+    data = json.loads(contextros("status", "--json").stdout)
+    stubborn = next(p for p in data["participants"] if p["node"] == "/stubborn")
+    assert stubborn["failed_epoch"] == refused.epoch
+    assert "Night cannot be left now" in stubborn["error"]
 
 
 def test_a_manager_that_waited_for_a_core_drops_no_node_whose_reports_it_holds(

@@ -515,7 +515,7 @@ def _registry_as_text(data: dict[str, Any]) -> str:
         [
             p["node"],
             str(p["applied_epoch"]),
-            "TWIN" if p["conflict"] else "LAGS" if p["lagging"] else "ok",
+            _node_state(p),
             "yes" if p["in_critical_section"] else "",
             f"{p['silent_for']:.1f} s",
             ", ".join(p["layers"]),
@@ -531,6 +531,10 @@ def _registry_as_text(data: dict[str, Any]) -> str:
             f"CONFLICT: more than one live process is named {name} (state TWIN): each must "
             "acknowledge for itself; give every context node a unique name",
         ]
+    refusing = [p for p in data["participants"] if _node_state(p) == "REFUSED"]
+    if refusing:
+        parts.append("")
+        parts += [f"REFUSED: {p['node']} could not apply {p['error']}" for p in refusing]
     if data["dropped"]:
         parts += ["", f"dropped: {', '.join(data['dropped'])}"]
     if data["rules"]:
@@ -550,6 +554,16 @@ def _registry_as_text(data: dict[str, Any]) -> str:
         ]
         parts += ["", _table(["BINDING", "NODE", "SETS", "LAST RESULT"], rows)]
     return "\n".join(parts)
+
+
+def _node_state(participant: dict[str, Any]) -> str:
+    """TWIN (a name clash), REFUSED (it could not apply a newer state: it said why), LAGS
+    (not on the current epoch yet) or ok."""
+    if participant["conflict"]:
+        return "TWIN"
+    if participant["failed_epoch"] > participant["applied_epoch"]:
+        return "REFUSED"
+    return "LAGS" if participant["lagging"] else "ok"
 
 
 def _rule_rows(data: dict[str, Any]) -> list[list[str]]:

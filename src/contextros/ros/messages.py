@@ -197,6 +197,8 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
             hosted_nodes=list(p.hosted),
             incarnation=p.incarnation,
             conflict=p.conflict,
+            failed_epoch=p.failed_epoch,
+            error=p.error,
         )
         for p in view.participants
     ]
@@ -237,6 +239,9 @@ def registry_to_dict(registry: Any) -> dict[str, Any]:
                 "hosted_nodes": list(p.hosted_nodes),
                 "incarnation": p.incarnation,
                 "conflict": p.conflict,
+                # A manager older than these fields has none: nothing refused.
+                "failed_epoch": getattr(p, "failed_epoch", 0),
+                "error": getattr(p, "error", ""),
             }
             for p in registry.participants
         ],

@@ -46,6 +46,9 @@ class ParticipantView:
     incarnation: str = ""
     # Another live process reports under the same name.
     conflict: bool = False
+    # The newest state it could not apply (0: none), and why.
+    failed_epoch: int = 0
+    error: str = ""
 
 
 @dataclass(frozen=True)
@@ -109,6 +112,8 @@ class Registry(ManagerBase):
                 hosted=record.report.hosted,
                 incarnation=incarnation,
                 conflict=node in conflicts,
+                failed_epoch=record.report.failed_epoch,
+                error=record.report.error,
             )
             for (node, incarnation), record in sorted(self._participants.items())
         )
