@@ -14,6 +14,7 @@ state): a history, not a model of the protocol.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
@@ -77,6 +78,9 @@ ALL = frozenset(
 # again). Runs leave them out unless asked to check everything; tests check each on its
 # own, expecting the violation, so that a fix shows.
 KNOWN_BROKEN = frozenset({ONE_VOTE, ONE_VETO})
+
+# How an answer says which proposed epoch an atomic activation aborted.
+_ABORTED = re.compile(r"atomic activation of epoch (\d+) aborted")
 
 
 class InvariantViolation(AssertionError):
@@ -292,13 +296,12 @@ class Invariants:
             self._fail(ANSWERS, f"a second answer to request {request_id}: {result.message}")
         asked.answered = True
         command = asked.command
-        if command.atomic and not result.success:
-            # Whatever this manager proposed and did not publish is aborted for good.
-            self.aborted |= {
-                (mid, epoch)
-                for mid, epoch in self.proposed
-                if mid == manager_id and (mid, epoch) not in self.published
-            }
+        aborted = _ABORTED.search(result.message) if command.atomic else None
+        if aborted is not None and not result.success:
+            epoch = int(aborted.group(1))
+            if (manager_id, epoch) in self.published:
+                self._fail(ABORTS, f"atomic epoch {epoch} aborted after it was published")
+            self.aborted.add((manager_id, epoch))
         if not result.success:
             return
         known = self.layers_of_epoch.get(result.epoch)
