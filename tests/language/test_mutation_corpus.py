@@ -262,8 +262,15 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             "17:1: expected a declaration ('layer', 'base' or 'group'), found 'bas' "
             "(misspelt 'base'?)",
         ),
+        (
+            "x.cpp.layers",
+            ROBOT,
+            '  return "wipe+" + proceed(area);',
+            "  proceed()\n  return area;",
+            "27:12: C++ syntax error: missing ';' after 'proceed()'",
+        ),
     ],
-    ids=["]", "{", "[", "Layr", ";", "grou", "layr", "py grou", "bas"],
+    ids=["]", "{", "[", "Layr", ";", "grou", "layr", "py grou", "bas", "; after proceed()"],
 )
 def test_the_issues_cases_report_the_real_error_first(
     name: str, source: str, old: str, new: str, first: str

@@ -108,6 +108,10 @@ class FunctionReader(Reader):
         if node.is_missing:
             self.error(f"C++ syntax error: missing {node.type!r}", start)
             return
+        if _unterminated(node):
+            text = self.source[start:end]
+            self.error(f"C++ syntax error: missing ';' after {text[-40:]!r}", end)
+            return
         stray = _stray(node, in_body=False) if node.type == "ERROR" else node
         if stray is not node:
             start, end = self.text.span(stray)
@@ -292,6 +296,22 @@ def _normalized(parts: list[str]) -> str:
             glue = "" if part in ("::", ",", ")", ">") else glue
         text += glue + part
     return text
+
+
+def _unterminated(error: tree_sitter.Node) -> bool:
+    """A statement tree-sitter could not end: one line ending in a complete expression (`f(x)`,
+    `x`), the next statement on a later line. Its ';' is missing."""
+    if error.type != "ERROR" or error.parent is None or error.parent.type != "compound_statement":
+        return False
+    following = error.next_sibling
+    last = error.children[-1] if error.children else None
+    return (
+        error.start_point.row == error.end_point.row
+        and following is not None
+        and following.start_point.row > error.end_point.row
+        and last is not None
+        and (last.type in ("call_expression", "identifier") or last.type.endswith("literal"))
+    )
 
 
 # Tokens that may stand anywhere in broken code: keywords, brackets, ';'.
