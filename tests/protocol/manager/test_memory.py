@@ -1,0 +1,112 @@
+"""What a manager with a state file keeps across a crash (issue 24): the highest epoch it
+proposed, the participants it knew; and the deadlines of commands that wait."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import pytest
+
+from contextros.protocol import (
+    ActivationCommand,
+    KnownParticipant,
+    LayerState,
+    ManagerMemory,
+    ManagerProtocol,
+    PublishProposal,
+    StateFileError,
+)
+from tests.protocol.manager.scenario import SETTINGS, replies, report, states
+
+
+def test_the_memory_reads_back_what_it_wrote_and_an_old_file_reads_as_none() -> None:
+    memory = ManagerMemory(
+        LayerState(4, ("Indoor",), "me", "why"), 6, (KnownParticipant("/a", "i1", ("/h",)),)
+    )
+    assert ManagerMemory.from_json(memory.to_json()) == memory
+    old = LayerState(4, ("Indoor",)).to_json()
+    assert ManagerMemory.from_json(old) == ManagerMemory(LayerState(4, ("Indoor",)))
+    with pytest.raises(StateFileError, match="proposed_epoch"):
+        ManagerMemory.from_json(old.replace("{", '{"proposed_epoch": "7",', 1))
+    with pytest.raises(StateFileError, match="node name"):
+        ManagerMemory.from_json(
+            old.replace("{", '{"participants": [{"node": 3, "incarnation": ""}],', 1)
+        )
+
+
+def test_an_epoch_proposed_before_a_crash_is_skipped_by_the_next_manager() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a"), 0.0)
+    manager.tick(1.0)  # epoch 1
+    actions = manager.receive_command(ActivationCommand(1, ("Night",), atomic=True), 1.1)
+    proposal = next(a.state for a in actions if isinstance(a, PublishProposal))
+    memory = manager.memory()
+    assert memory.proposed_epoch == proposal.epoch == 2
+    assert memory.participants == (KnownParticipant("/a", "1"),)
+    # The crash: a new manager from that memory.
+    successor = ManagerProtocol(10.0, SETTINGS, memory)
+    successor.receive_status(report("/a", applied=1), 10.1)
+    first = states(successor.tick(11.0))
+    assert [s.epoch for s in first] == [3], "epoch 2 named [Night] in the vote"
+
+
+def test_a_restarted_manager_waits_for_the_participants_it_knew() -> None:
+    known = (KnownParticipant("/a", "1"), KnownParticipant("/b", "1"))
+    manager = ManagerProtocol(0.0, SETTINGS, ManagerMemory(LayerState(5), 5, known))
+    manager.tick(1.0)  # recovery over with nobody heard: epoch 6
+    manager.receive_status(report("/a", applied=6), 1.1)
+    actions = manager.receive_command(ActivationCommand(1, ("Night",), synchronous=True), 1.2)
+    actions += manager.receive_status(report("/a", applied=7, active=("Night",)), 1.3)
+    assert 1 not in replies(actions), "answered while /b, known before, was not heard"
+    actions = manager.receive_status(report("/b", applied=7, active=("Night",)), 1.4)
+    assert replies(actions)[1].acknowledged == ("/a", "/b")
+    # One that never comes back is dropped a liveness bound after recovery, and named.
+    late = ManagerProtocol(0.0, SETTINGS, ManagerMemory(LayerState(5), 5, known))
+    late.tick(1.0)
+    late.receive_status(report("/a", applied=6), 1.1)
+    pending = late.receive_command(ActivationCommand(3, ("Night",), synchronous=True), 1.2)
+    pending += late.receive_status(report("/a", applied=7, active=("Night",)), 1.3)
+    pending += late.tick(1.0 + SETTINGS.liveness_timeout + 0.1)
+    result = replies(pending)[3]
+    assert not result.success and "/b (dropped, not heard for" in result.message
+
+
+def test_a_command_still_waiting_at_its_deadline_is_refused_never_executed() -> None:
+    manager = ManagerProtocol(0.0, replace(SETTINGS, recovery_window=3.0))
+    manager.receive_status(report("/a"), 0.0)
+    assert manager.receive_command(ActivationCommand(1, ("Night",), timeout=1.0), 0.1) == []
+    refused = replies(manager.tick(1.2))[1]
+    assert (
+        not refused.success and "not started within the command's timeout (1 s)" in refused.message
+    )
+    after = manager.tick(10.0)
+    assert all("Night" not in s.active for s in states(after))
+
+
+def test_an_abort_names_every_node_that_says_no() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    for node in ("/a", "/b", "/c"):
+        manager.receive_status(report(node), 0.0)
+    manager.tick(1.0)
+    actions = manager.receive_command(ActivationCommand(1, ("Night",), atomic=True), 1.1)
+    epoch = next(a.state for a in actions if isinstance(a, PublishProposal)).epoch
+    vote = {"vote_epoch": epoch, "vote_manager_id": SETTINGS.manager_id, "applied": 1}
+    no_a = manager.receive_status(report("/a", vote_yes=False, vote_reason="busy", **vote), 1.2)
+    assert 1 not in replies(no_a), "aborted before every vote was in"
+    manager.receive_status(report("/b", vote_yes=True, **vote), 1.3)
+    result = replies(manager.receive_status(report("/c", vote_reason="no", **vote), 1.4))[1]
+    assert result.not_acknowledged == ("/a", "/c")
+    assert "/a vetoed: busy" in result.message and "/c vetoed: no" in result.message
+
+
+def test_expect_count_counts_a_node_that_joins_during_the_command() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a"), 0.0)
+    manager.tick(1.0)
+    command = ActivationCommand(1, (), ("Indoor",), synchronous=True, expect_count=2)
+    manager.receive_command(ActivationCommand(9, ("Indoor",)), 1.0)
+    actions = manager.receive_command(command, 1.1)
+    actions += manager.receive_status(report("/a", applied=3), 1.2)
+    actions += manager.receive_status(report("/b", applied=0), 1.3)  # joins
+    actions += manager.receive_status(report("/b", applied=3), 1.4)
+    assert replies(actions)[1].acknowledged == ("/a", "/b")
