@@ -43,14 +43,14 @@ def _clean(result: Exploration) -> Exploration:
 
 
 def test_a_small_bound_keeps_every_guarantee() -> None:
-    """2 participants, 3 commands in any order, a node crash, a manager restart: depth 4."""
-    result = _clean(explore(Bounds(depth=4)))
-    assert result.states > 1_000 and result.transitions > result.states
+    """2 participants, 3 commands in any order, a node crash, a manager restart: depth 5."""
+    result = _clean(explore(Bounds(depth=5)))
+    assert result.states > 5_000 and result.transitions > result.states
 
 
 def test_three_participants_keep_every_guarantee() -> None:
-    result = _clean(explore(Bounds(participants=3, depth=3)))
-    assert result.states > 300
+    result = _clean(explore(Bounds(participants=3, depth=4)))
+    assert result.states > 2_000
 
 
 def test_a_state_reached_by_two_orders_is_one_state() -> None:
