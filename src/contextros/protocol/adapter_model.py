@@ -6,22 +6,35 @@ drive the protocol through these; keep them in step with the adapter.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
-from contextros.protocol.events import ParticipantAction
+from contextros.protocol.events import (
+    ManagerAction,
+    ParticipantAction,
+    ParticipantDropped,
+    ParticipantJoined,
+    PublishProposal,
+    PublishState,
+)
 from contextros.protocol.invariants import Invariants
 from contextros.protocol.manager import ManagerProtocol
 from contextros.protocol.participant import ParticipantProtocol
 from contextros.protocol.state import LayerState, ManagerMemory
 
+# The actions before which the adapter writes the manager's memory to its state file, if
+# it changed (`contextros.ros.manager_node`).
+DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)
 
-def state_file(manager: ManagerProtocol) -> ManagerMemory | None:
-    """What the adapter's state file holds after the manager handled an event (written
-    before the event's actions go out): the manager's durable memory (its state, the
-    highest epoch it proposed, the participants it knew live), nothing while it has
-    neither published nor proposed anything."""
-    memory = manager.memory()
-    return memory if memory.proposed_epoch else None
+
+def state_file(
+    saved: ManagerMemory | None, manager: ManagerProtocol, actions: Sequence[ManagerAction]
+) -> ManagerMemory | None:
+    """What the state file holds once the manager handled an event, holding `saved`
+    before, and returned `actions`: its memory (state, highest epoch proposed, participants
+    known live), written before those actions go out if one of them is durable."""
+    if any(isinstance(action, DURABLE) for action in actions):
+        return manager.memory()
+    return saved
 
 
 def deliver_proposal(

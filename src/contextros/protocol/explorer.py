@@ -254,7 +254,7 @@ class World:
 
     def _manager(self, actions: list[ManagerAction]) -> None:
         assert self.manager is not None
-        self.saved = state_file(self.manager)  # written before anything goes out
+        self.saved = state_file(self.saved, self.manager, actions)
         self.invariants.manager_actions(self._manager_id, actions, self.now)
         for action in actions:
             if isinstance(action, (PublishState, PublishHeartbeat)):

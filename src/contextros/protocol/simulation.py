@@ -314,7 +314,7 @@ class Simulation:
         started = time.process_time()
         actions = call(manager)
         self.counters.manager_cpu += time.process_time() - started
-        self.state_file = state_file(manager)  # persisted, then the actions go out
+        self.state_file = state_file(self.state_file, manager, actions)
         self._run_manager(actions)
 
     def _run_manager(self, actions: Sequence[ManagerAction]) -> None:
