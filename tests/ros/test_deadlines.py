@@ -41,8 +41,8 @@ def test_a_command_waiting_past_its_timeout_is_refused_never_executed(
     before = settle(client, "Indoor")
     system.manager.signal(signal.SIGKILL)
     system.manager.wait_exit()
-    # The new manager listens 4 s before deciding anything: the command waits meanwhile.
-    processes.manager("--liveness-timeout", LIVENESS, "--recovery-window", "4", name="m2")
+    # The new manager listens 5 s before deciding anything: the command waits meanwhile.
+    processes.manager("--liveness-timeout", LIVENESS, "--recovery-window", "5", name="m2")
     client.wait_for_manager(15.0)
     assert client.query().recovering
     started = time.monotonic()

@@ -57,8 +57,8 @@ def test_a_synchronous_answer_after_a_restart_waits_for_the_nodes_known_before(
     k2 = system.participants["k2"]
     k2.signal(signal.SIGSTOP)  # it cannot report to the new manager for a while
     try:
-        # A node known before the restart gets the liveness bound (3 s) to report again.
-        restart_manager(processes, state_file, liveness="3.0")
+        # A node known before the restart gets the liveness bound (5 s) to report again.
+        restart_manager(processes, state_file, liveness="5.0")
         wait_registry(client, lambda r: r.epoch > before.epoch and not r.recovering)
         future = client.request_async(["Night"], synchronous=True, timeout=4)
         time.sleep(0.3)
