@@ -22,11 +22,13 @@ of every protocol object, the network and the invariants' history) so a state re
 two interleavings is explored once, as TLC and stateright do. The search is breadth first:
 the first violation found comes with a shortest trace to it.
 
-    python -m contextros.protocol.explorer --participants 2 --depth 8
+    python -m contextros.protocol.explorer --participants 2 --depth 6
 
 The protocol's timings are scaled to the step (`explorer_settings`): a heartbeat per step,
 recovery one step, the liveness bound three, command timeouts two. Repeats of statuses and
 states on a lossy link are off: they only send again what the explorer may deliver again.
+One module: the world (its events) and the search (fingerprints, breadth first) are read
+together, and docs/protocol.md ("Checked exhaustively") says what a bound proves.
 """
 
 from __future__ import annotations
