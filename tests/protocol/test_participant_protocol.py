@@ -145,6 +145,21 @@ def test_a_vote_is_yes_unless_a_critical_section_or_a_relation_says_no() -> None
     assert busy.report.vote_reason == "arm moving; in a critical section"
 
 
+def test_the_vetoes_are_wanted_once_per_proposal() -> None:
+    # The adapter asks the application's vetoes only while `wants_vote` (issue 24: up to
+    # 61 calls for one proposal repeated every 50 ms); meanwhile a repeat votes nothing.
+    p = ParticipantProtocol("/p", "1", (LayerDeclaration("Night"),), repeats=())
+    proposal = LayerState(2, ("Night",), manager_id="m1")
+    assert p.wants_vote(proposal)
+    heard = p.receive_proposal(proposal, now=0.0, vote=False)  # a new manager: it reports
+    assert [a.report.vote_epoch for a in heard if isinstance(a, PublishStatus)] == [0]
+    assert p.wants_vote(proposal) and p.vote_epoch == 0, "heard, not voted"
+    p.receive_proposal(proposal, now=0.1, veto="busy")
+    assert not p.wants_vote(proposal)
+    assert not p.wants_vote(LayerState(2, ("Night",), manager_id="m1")), "a repeat"
+    assert p.wants_vote(LayerState(2, ("Night",), manager_id="m2")), "another manager's"
+
+
 def test_a_successor_carries_on_from_the_participant_it_replaces() -> None:
     # The carrier node of a process goes; the next node carries a new participant (a new
     # incarnation) for the same process, whose layers are still those applied before.
