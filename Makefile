@@ -70,8 +70,18 @@ cpp: $(CPP_BUILD)/build.ninja
 cpp-demo: $(CPP_BUILD)/build.ninja
 	$(BUILD_PATH) cmake --build $(CPP_BUILD) --parallel 2 --target cleaner_localization
 
+# The core's C dispatcher (src/contextros/core/_dispatch.c), built by the wheel's CMake tree
+# and copied next to its source (the editable install uses the sources in place). A failed
+# build leaves the pure-Python dispatchers in use, and says so.
+$(VENV)/.stamp-dispatch: $(VENV)/.stamp-interfaces src/contextros/core/_dispatch.c
+	rm -f src/contextros/core/_dispatch.*.so
+	$(BUILD_PATH) cmake --build $(WHEEL_BUILD) --target dispatch_extension \
+	  && cp $(WHEEL_BUILD)/dispatch/_dispatch.*.so src/contextros/core/ \
+	  || echo "contextros: WARNING: the C dispatcher was not built; pure-Python dispatch"
+	touch $@
+
 venv: $(VENV)/.stamp-base
-ros: $(VENV)/.stamp-interfaces
+ros: $(VENV)/.stamp-interfaces $(VENV)/.stamp-dispatch
 
 demo: ros cpp-demo
 	$(BYTECODE) src examples >/dev/null

@@ -29,7 +29,8 @@ def _robot_class() -> type:
 def _installed_objects(function: object) -> dict[int, object]:
     owner = layered_function_of(function)
     assert owner is not None
-    table: dict[int, object] = owner.stable.__globals__[owner._objects_key]
+    table = owner.installed_objects()
+    assert table is not None
     return table
 
 

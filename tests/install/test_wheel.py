@@ -89,3 +89,21 @@ def test_a_missing_piece_is_named_with_what_to_install(tmp_path: Path) -> None:
     assert "RosUnavailableError: rclpy (ROS 2's Python client library) cannot be imported" in (
         done.stderr
     ), done.stderr
+
+
+def test_the_installed_wheel_dispatches_in_c(user_venv: Path) -> None:
+    """The wheel carries the core's C dispatcher and its import selects it."""
+    shown = subprocess.run(
+        [
+            str(user_venv / "bin" / "python"),
+            "-c",
+            "import contextros.core, contextros.core._dispatch as d; "
+            "print(contextros.core.DISPATCHER, d.__file__)",
+        ],
+        env=user_environment(user_venv),
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.split()
+    assert shown[0] == "c"
+    assert Path(shown[1]).is_relative_to(user_venv)

@@ -18,6 +18,7 @@ from contextros.core.activation import (
     subscribe,
     switch,
 )
+from contextros.core.composition import DISPATCHER
 from contextros.core.layer import Layer, defined_layers, layer_named
 from contextros.core.layered import (
     LayeredFunction,
@@ -29,6 +30,7 @@ from contextros.core.linking import proceed
 from contextros.core.runtime import SwitchEvent, SwitchResult
 
 __all__ = [
+    "DISPATCHER",
     "Layer",
     "LayeredFunction",
     "LayeredProperty",

@@ -8,6 +8,7 @@ configuration), so the runtime imports this module and never the other way round
 from __future__ import annotations
 
 import inspect
+import os
 from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
 from types import CodeType, FunctionType, MappingProxyType
@@ -31,6 +32,23 @@ from contextros.core.linking import (
 from contextros.errors import LayerDefinitionError, NoImplementationError, ProceedError
 
 F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _finder_type() -> Any:
+    """The C look-up of the scoped and per-receiver dispatchers (`_dispatch.c`), or None:
+    not built, or CONTEXTROS_PURE_PYTHON=1; the dispatchers are then pure Python."""
+    if os.environ.get("CONTEXTROS_PURE_PYTHON", "") not in ("", "0"):
+        return None
+    try:
+        from contextros.core._dispatch import Finder
+    except ImportError:
+        return None
+    return Finder
+
+
+_FINDER = _finder_type()
+# Which dispatcher the scoped and per-receiver paths use: "c" or "python".
+DISPATCHER = "python" if _FINDER is None else "c"
 
 
 class Host(Protocol):
@@ -99,6 +117,7 @@ class LayeredFunction:
         self._exact_code = trampoline_code(
             [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
         )
+        self._find_key = fresh_key("find")
         self._objects_key = fresh_key("objects")
         self._classes_key = fresh_key("classes")
         # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
@@ -128,7 +147,14 @@ class LayeredFunction:
 
     def _scoped_dispatcher(self, parameters: str, arguments: str) -> CodeType:
         """Calls read the caller's scope first; one with no scope in a process with none
-        alive puts the direct path back."""
+        alive puts the direct path back (in C: the Finder does both)."""
+        if _FINDER is not None:
+            return trampoline_code(
+                [f"return {self._find_key}()({arguments})"],
+                self._freevars,
+                self.qualname,
+                parameters,
+            )
         return trampoline_code(
             [
                 f"__contextros_scope = {self._scope_key}.get()",
@@ -159,6 +185,16 @@ class LayeredFunction:
         """Calls look up their receiver's own layers first (per-object, then class-wide),
         then the caller's scope. `receiver` names the first parameter ("": `args[0]`)."""
         codes: dict[str, CodeType] = {}
+        if _FINDER is not None:  # the Finder knows the kind
+            lookup = (
+                f"{self._find_key}({receiver})"
+                if receiver
+                else f"({self._find_key}(args[0]) if args else {self._find_key}())"
+            )
+            code = trampoline_code(
+                [f"return {lookup}({arguments})"], self._freevars, self.qualname, parameters
+            )
+            return {"object": code, "class": code}
         for kind in ("object", "class"):
             target = receiver or "args[0]"
             cls = f"type({target})" if kind == "object" else target
@@ -424,24 +460,47 @@ class LayeredFunction:
         """Make calls of `stable` read the caller's scope first (while scopes are alive);
         a call that finds no scope alive at all puts the direct path back."""
         namespace = self.stable.__globals__
-        namespace[self._head_key] = self.global_head
-        namespace[self._scope_key] = runtime.scope
-        namespace[self._runtime_key] = runtime
-        namespace[self._self_key] = self
+        if _FINDER is not None:
+            namespace[self._find_key] = _FINDER(self, runtime.scope, runtime, self.global_head)
+        else:
+            namespace[self._head_key] = self.global_head
+            namespace[self._scope_key] = runtime.scope
+            namespace[self._runtime_key] = runtime
+            namespace[self._self_key] = self
         self.stable.__code__ = self._scoped_exact_code if self._uniform else self._scoped_code
 
     def install_receiver(self, runtime: Any) -> None:
         """Make calls of `stable` look up their receiver's own layers first (per-object
         and class-wide activation), then the caller's scope."""
         namespace = self.stable.__globals__
-        namespace[self._head_key] = self.global_head
-        namespace[self._scope_key] = runtime.scope
-        namespace[self._objects_key] = runtime.receivers.objects
-        namespace[self._classes_key] = runtime.receivers.classes
-        namespace[self._runtime_key] = runtime
-        namespace[self._self_key] = self
+        receivers = runtime.receivers
+        if _FINDER is not None:
+            namespace[self._find_key] = _FINDER(
+                self,
+                runtime.scope,
+                runtime,
+                self.global_head,
+                receivers.objects,
+                receivers.classes,
+                self.receiver_kind == "class",
+            )
+        else:
+            namespace[self._head_key] = self.global_head
+            namespace[self._scope_key] = runtime.scope
+            namespace[self._objects_key] = receivers.objects
+            namespace[self._classes_key] = receivers.classes
+            namespace[self._runtime_key] = runtime
+            namespace[self._self_key] = self
         exact = self._receiver_exact_code if self._uniform else None
         self.stable.__code__ = (exact or self._receiver_code)[self.receiver_kind]
+
+    def installed_objects(self) -> dict[int, Any] | None:
+        """The per-object table calls of `stable` read (None: not on the per-receiver path)."""
+        namespace = self.stable.__globals__
+        if _FINDER is not None:
+            finder = namespace.get(self._find_key)
+            return None if finder is None else finder.objects
+        return namespace.get(self._objects_key)
 
     def _missing(self) -> Callable[..., Any]:
         qualname = self.qualname

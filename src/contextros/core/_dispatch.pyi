@@ -1,0 +1,21 @@
+from collections.abc import Callable
+from contextvars import ContextVar
+from typing import Any
+
+class Finder:
+    """Called as FIND() or FIND(receiver): the head a layered call runs (_dispatch.c)."""
+
+    head: Callable[..., Any]
+    function: object
+    objects: dict[int, Any] | None
+    def __init__(
+        self,
+        function: object,
+        scope: ContextVar[Any],
+        runtime: object,
+        head: Callable[..., Any],
+        objects: dict[int, Any] | None = None,
+        classes: dict[type, Any] | None = None,
+        by_class: bool = False,
+    ) -> None: ...
+    def __call__(self, receiver: object = ..., /) -> Callable[..., Any]: ...
