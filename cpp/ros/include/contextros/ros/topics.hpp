@@ -12,6 +12,9 @@ inline constexpr const char* state_topic = "contextros/state";
 inline constexpr const char* heartbeat_topic = "contextros/heartbeat";
 inline constexpr const char* proposal_topic = "contextros/proposal";
 inline constexpr const char* status_topic = "contextros/status";
+// The manager's services (the activation client, contextros/ros/client.hpp).
+inline constexpr const char* activate_service = "contextros/activate";
+inline constexpr const char* query_service = "contextros/query";
 
 // Only the newest state matters (full snapshots), and a late joiner must get it at once.
 rmw_qos_profile_t state_qos();
