@@ -184,3 +184,19 @@ def test_a_cpp_node_votes_in_an_atomic_activation(
     assert committed.success, committed.message
     assert committed.acknowledged == ("/voter_cxx", "/voter_py")
     assert cpp.wait_applied(committed.epoch)["mode"] == "vacuum+base"
+
+
+def test_a_cpp_nodes_slow_veto_is_asked_once_and_the_node_stays_live(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """Issue 24: a veto thinking longer than the liveness bound (1 s here) runs off the
+    participant's thread, once per proposal; the node's heartbeats go on meanwhile."""
+    cpp = processes.cpp_participant("slow_cxx", "--veto-sleep", "1.5")
+    ready(cpp)
+    start_system(processes, client, ["quick_py"])
+    wait_registry(client, lambda r: len(r.participants) == 2, what="both participants")
+    committed = client.request(["Night"], atomic=True, timeout=5)
+    assert committed.success, committed.message
+    assert committed.acknowledged == ("/quick_py", "/slow_cxx")
+    calls = [e for e in cpp.events if e["event"] == "veto-called"]
+    assert [e["epoch"] for e in calls] == [committed.epoch], calls

@@ -193,6 +193,30 @@ void Participant::Impl::take_states(RclSubscription& subscription) {
   }
 }
 
+namespace {
+
+// What the vetoes say about `proposal` ("" if none objects); on their worker thread.
+std::string ask_vetoes(const std::vector<Veto>& vetoes, const LayerState& proposal) {
+  std::string reasons;
+  for (const Veto& veto : vetoes) {
+    std::string reason;
+    try {
+      reason = veto(proposal);
+    } catch (const std::exception& error) {  // a veto that fails says no
+      reason = std::string("a veto failed: ") + error.what();
+    } catch (...) {
+      reason = "a veto failed";
+    }
+    if (!reason.empty()) reasons += (reasons.empty() ? "" : "; ") + reason;
+  }
+  return reasons;
+}
+
+}  // namespace
+
+// A proposal (repeated every 50 ms while the vote is open): without vetoes the node votes
+// at once; with vetoes they are asked once, in a worker thread (heartbeats go on), and the
+// vote follows their answer (take_veto_answers).
 void Participant::Impl::take_proposals() {
   msg::LayerState message;
   while (proposal_subscription.take(message)) {
@@ -203,22 +227,33 @@ void Participant::Impl::take_proposals() {
       wanted = protocol.wants_vote(proposal);
     }
     std::vector<Veto> to_ask;
-    if (wanted) {  // once per proposal, not on each of its repeats
+    if (wanted) {
       std::lock_guard<std::mutex> lock(listeners_mutex);
       to_ask = vetoes;
     }
-    std::string reasons;
-    for (const Veto& veto : to_ask) {
-      std::string reason;
-      try {
-        reason = veto(proposal);
-      } catch (const std::exception& error) {  // a veto that fails says no
-        reason = std::string("a veto failed: ") + error.what();
-      } catch (...) {
-        reason = "a veto failed";
-      }
-      if (!reason.empty()) reasons += (reasons.empty() ? "" : "; ") + reason;
+    if (to_ask.empty()) {
+      event([&] { return protocol.receive_proposal(proposal, Clock::now()); });
+      continue;
     }
+    event([&] { return protocol.receive_proposal(proposal, Clock::now(), {}, false); });
+    auto key = std::make_pair(proposal.epoch, proposal.manager_id);
+    if (asking == key) {
+      continue;  // its vetoes are still thinking
+    }
+    asking = std::move(key);
+    // The worker holds the inbox, not the participant: it may outlive it.
+    std::thread([box = inbox, proposal, to_ask = std::move(to_ask)] {
+      box->post_answer(proposal, ask_vetoes(to_ask, proposal));
+    }).detach();
+  }
+}
+
+void Participant::Impl::take_veto_answers() {
+  for (const auto& [proposal, reasons] : inbox->take_answers()) {
+    if (!asking || *asking != std::make_pair(proposal.epoch, proposal.manager_id)) {
+      continue;  // a newer proposal came meanwhile: this one is over
+    }
+    asking.reset();
     event([&] { return protocol.receive_proposal(proposal, Clock::now(), reasons); });
   }
 }

@@ -26,6 +26,7 @@ namespace contextros::ros {
 class Inbox {
  public:
   using Settled = std::pair<LayerState, SwitchOutcome>;
+  using Answer = std::pair<LayerState, std::string>;  // a proposal and its vetoes' reasons
   explicit Inbox(RclGuardCondition& wake) : wake_(&wake) {}
   void post(const LayerState& state, const SwitchOutcome& outcome) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -38,6 +39,18 @@ class Inbox {
     std::lock_guard<std::mutex> lock(mutex_);
     return std::exchange(settled_, {});
   }
+  // The vetoes' answer about a proposal, from their worker thread.
+  void post_answer(const LayerState& proposal, std::string reasons) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (wake_ != nullptr) {
+      answers_.emplace_back(proposal, std::move(reasons));
+      wake_->trigger();
+    }
+  }
+  std::vector<Answer> take_answers() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return std::exchange(answers_, {});
+  }
   void close() {
     std::lock_guard<std::mutex> lock(mutex_);
     wake_ = nullptr;
@@ -47,6 +60,7 @@ class Inbox {
   std::mutex mutex_;
   RclGuardCondition* wake_;  // not owned; null once the participant is gone
   std::vector<Settled> settled_;
+  std::vector<Answer> answers_;
 };
 
 struct Participant::Impl {
@@ -78,6 +92,8 @@ struct Participant::Impl {
   void take_states(RclSubscription& subscription);
 
   void take_proposals();
+  // Votes on the proposals whose vetoes answered (in their worker thread) meanwhile.
+  void take_veto_answers();
 
   // Called with `mutex` held; at most one line per 10 s (anyone can publish a state).
   void log_rejected(const StateRejected& rejected);
@@ -119,6 +135,8 @@ struct Participant::Impl {
   std::vector<LayerState> applied_states;  // to tell the listeners
   std::vector<LayerState> to_apply;        // by event(), once `mutex` is released
   bool restore_applied = false;            // the manager was found again
+  // The proposal (epoch, manager) whose vetoes think in their worker thread, if any.
+  std::optional<std::pair<std::uint64_t, std::string>> asking;
   std::optional<Clock::time_point> last_rejection_logged;
   std::atomic<bool> stopping{false};
   std::thread thread;

@@ -215,14 +215,14 @@ bool ParticipantProtocol::wants_vote(const LayerState& proposal) const {
 
 ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& proposal,
                                                          Clock::time_point now,
-                                                         std::string_view veto) {
+                                                         std::string_view veto, bool vote) {
   std::vector<std::string> problems = state_problems(proposal);
   if (!problems.empty()) {
     problems.resize(std::min<std::size_t>(problems.size(), 5));
     return {StateRejected{std::move(problems)}};
   }
   ParticipantActions actions = heard_manager(proposal.manager_id, now);
-  if (!wants_vote(proposal)) {
+  if (!vote || !wants_vote(proposal)) {
     return actions;  // stale, or already voted (every report repeats the vote)
   }
   std::vector<std::string> reasons;

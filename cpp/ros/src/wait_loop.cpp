@@ -61,6 +61,7 @@ bool Participant::Impl::turn() {
   if (set->subscriptions[2] != nullptr) {
     take_proposals();
   }
+  take_veto_answers();
   notify(settle_deferred());
   if (stopping.load()) {
     return false;

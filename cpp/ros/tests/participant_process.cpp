@@ -11,7 +11,8 @@
 // Options: --name NAME (required), --layers A,B (the layers it announces; default all),
 // --heartbeat SECONDS, --refuse LAYER (after announcing, LAYER is redefined to require a
 // layer nobody has: the manager does not know, so this node refuses any state with it),
-// --also NAME (a second node of this process, hosted by the first, announcing Night).
+// --also NAME (a second node of this process, hosted by the first, announcing Night),
+// --veto-sleep SECONDS (a veto that prints `veto-called` and takes that long to say yes).
 #include <pthread.h>
 #include <signal.h>
 #include <unistd.h>
@@ -114,6 +115,7 @@ struct Options {
   double heartbeat = 0.25;
   std::string refuse;
   std::string also;
+  double veto_sleep = -1;  // no veto
 };
 
 std::vector<std::string> split(const std::string& text) {
@@ -140,6 +142,8 @@ Options parse(int argc, char** argv) {
       options.refuse = value;
     } else if (flag == "--also") {
       options.also = value;
+    } else if (flag == "--veto-sleep") {
+      options.veto_sleep = std::stod(value);
     } else if (flag == "--ros-args") {
       break;
     } else {
@@ -208,6 +212,14 @@ int main(int argc, char** argv) {
     emit("applied", "\"epoch\": " + std::to_string(state.epoch) + ", \"active\": " +
                         list(state.active) + ", \"mode\": " + quoted(mode()));
   });
+  if (options.veto_sleep >= 0) {
+    const double seconds = options.veto_sleep;
+    contextros::ros::ContextNode::add_veto([seconds](const contextros::ros::LayerState& proposal) {
+      emit("veto-called", "\"epoch\": " + std::to_string(proposal.epoch));
+      std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+      return std::string();
+    });
+  }
   if (!options.refuse.empty()) {
     // A later definition of a name replaces the earlier one; the participant announced the
     // earlier one, so the manager cannot know of this relation.

@@ -130,8 +130,10 @@ class ParticipantProtocol {
   // (epoch, manager). Yes: no critical section open or deferring a switch, no relation this
   // node declares broken, and `veto` (the application's answer) empty. A vote changes
   // nothing: the node switches only when the manager commits that epoch as a state.
+  // `vote` false: the proposal only shows the manager is alive (the adapter is still asking
+  // the application's vetoes about it).
   ParticipantActions receive_proposal(const LayerState& proposal, Clock::time_point now,
-                                      std::string_view veto = {});
+                                      std::string_view veto = {}, bool vote = true);
   // Whether receive_proposal would vote on `proposal` (new, valid, not voted on yet): the
   // adapter asks the application's vetoes once per proposal, not on each repeat.
   bool wants_vote(const LayerState& proposal) const;
