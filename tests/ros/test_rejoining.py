@@ -32,3 +32,25 @@ def test_expect_count_counts_a_node_that_rejoins(
     assert result.success, result.message
     assert result.acknowledged == ("/e1",)
     assert result.elapsed < 3, result.elapsed
+
+
+def test_a_node_that_rejoins_during_a_synchronous_command_is_counted(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    system = start_system(processes, client, ["j1", "j2"])
+    settle(client, "Indoor")
+    j1, j2 = system.participants["j1"], system.participants["j2"]
+    j2.signal(signal.SIGSTOP)
+    try:
+        wait_registry(client, lambda r: "/j2" in r.dropped, what="/j2 dropped")
+        j1.send("critical 1.5")  # the command stays pending while /j2 comes back
+        j1.wait_for(lambda events: any(e["event"] == "critical-open" for e in events), 5)
+        future = client.request_async(["Night"], synchronous=True, timeout=5)
+        threading.Timer(0.3, j2.signal, args=(signal.SIGCONT,)).start()
+        rclpy.spin_until_future_complete(client.node, future, timeout_sec=8)
+    finally:
+        j2.signal(signal.SIGCONT)
+    result = client.result_of(future)
+    # Before: "applied by 1 node(s)", /j2 live again and on that epoch, not named.
+    assert result.success, result.message
+    assert result.acknowledged == ("/j1", "/j2"), result.message

@@ -110,3 +110,21 @@ def test_expect_count_counts_a_node_that_joins_during_the_command() -> None:
     actions += manager.receive_status(report("/b", applied=0), 1.3)  # joins
     actions += manager.receive_status(report("/b", applied=3), 1.4)
     assert replies(actions)[1].acknowledged == ("/a", "/b")
+
+
+def test_a_node_that_rejoins_during_a_synchronous_command_is_waited_for() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    for node in ("/a", "/b", "/c"):
+        manager.receive_status(report(node), 0.0)
+    manager.tick(1.0)  # epoch 1
+    manager.receive_status(report("/a", applied=1), 2.0)
+    manager.receive_status(report("/b", applied=1), 2.0)
+    manager.tick(3.5)  # /c silent for 3.5 s: dropped
+    assert "/c" in manager.dropped
+    actions = manager.receive_command(ActivationCommand(1, ("Night",), synchronous=True), 3.6)
+    actions += manager.receive_status(report("/c", applied=1), 3.7)  # back
+    actions += manager.receive_status(report("/a", applied=2, active=("Night",)), 3.8)
+    actions += manager.receive_status(report("/b", applied=2, active=("Night",)), 3.9)
+    assert 1 not in replies(actions), "answered 'every node' while /c, back, had not applied"
+    actions = manager.receive_status(report("/c", applied=2, active=("Night",)), 4.0)
+    assert replies(actions)[1].acknowledged == ("/a", "/b", "/c")

@@ -73,6 +73,14 @@ class Acknowledgements(ManagerBase):
             if short or {key[0], *record.report.hosted} & wanted:
                 pending.waiting.add(key)
 
+    def _await_rejoined(self, key: Key) -> None:
+        """A node the manager had dropped is back: a pending synchronous command waits for
+        it too (its answer must not say "every node" without it), unless it was lost to
+        that very command (its answer names it dropped already)."""
+        for pending in self._pending:
+            if key not in pending.acknowledged and key not in pending.lost:
+                pending.waiting.add(key)
+
     def _acknowledged_names(self, pending: PendingActivation) -> set[str]:
         """Nodes every process of whose name applied the epoch, with the nodes they host."""
         refused = {key[0] for key in (*pending.waiting, *pending.lost, *pending.failed)}

@@ -170,6 +170,9 @@ class ManagerBase(ABC):
     ) -> list[ManagerAction]: ...
 
     @abstractmethod
+    def _await_rejoined(self, key: Key) -> None: ...
+
+    @abstractmethod
     def _propose(
         self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
     ) -> list[ManagerAction]: ...

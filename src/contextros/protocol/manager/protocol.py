@@ -49,6 +49,8 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         self._hosted[report.node] = report.hosted
         if report.node in self._dropped:  # it rejoined: the dropped list names absent nodes
             self._dropped.remove(report.node)
+            if known is None:
+                self._await_rejoined(key)
         if not self.recovering and self._is_ahead(report):
             actions += self._overtake(report, now)
         if known is None:
