@@ -6,43 +6,55 @@ from __future__ import annotations
 import os
 from collections.abc import Iterator
 
-from contextros.language.rules import BoolOp, Comparison, Condition, FieldRef, Literal, Not
+from contextros.language.rules import (
+    BoolOp,
+    Comparison,
+    Condition,
+    FieldRef,
+    Literal,
+    Not,
+    relaxed,
+)
 from contextros.rules.replay import ReplayResult
 from contextros.rules.ruleset import RuleSet
-
-_RELAX = {"<": 1.0, "<=": 1.0, ">": -1.0, ">=": -1.0}
 
 
 def thresholds(rules: RuleSet) -> dict[str, list[tuple[str, float, float]]]:
     """Per field: (rule, threshold, threshold once the condition holds) of each comparison
-    of the field against a number."""
+    of the field against a number (the engine's own `relaxed` condition gives the second)."""
     found: dict[str, list[tuple[str, float, float]]] = {}
     for rule in rules.rules:
         margin = rule.hysteresis if rule.mode == "while" else 0.0
-        for comparison, sign in _comparisons(rule.condition, 1.0):
-            left, right, op = comparison.left, comparison.right, comparison.op
-            if isinstance(left, FieldRef) and isinstance(right, Literal):
-                field, value = left, right.value
-            elif isinstance(right, FieldRef) and isinstance(left, Literal):
-                field, value = right, left.value
-                op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
-            else:
-                continue
-            if isinstance(value, bool) or not isinstance(value, float | int):
-                continue
-            relaxed = float(value) + _RELAX.get(op, 0.0) * sign * margin
-            found.setdefault(field.text, []).append((rule.name, float(value), relaxed))
+        held = relaxed(rule.condition, margin)
+        for strict, loose in zip(_comparisons(rule.condition), _comparisons(held), strict=True):
+            limit, moved = _limit(strict), _limit(loose)
+            if limit is not None and moved is not None:
+                found.setdefault(limit[0], []).append((rule.name, limit[1], moved[1]))
     return found
 
 
-def _comparisons(condition: Condition, sign: float) -> Iterator[tuple[Comparison, float]]:
+def _limit(comparison: Comparison) -> tuple[str, float] | None:
+    """(field, number) of a comparison of a field against a number."""
+    left, right = comparison.left, comparison.right
+    if isinstance(left, FieldRef) and isinstance(right, Literal):
+        field, value = left, right.value
+    elif isinstance(right, FieldRef) and isinstance(left, Literal):
+        field, value = right, left.value
+    else:
+        return None
+    if isinstance(value, bool) or not isinstance(value, float | int):
+        return None
+    return field.text, float(value)
+
+
+def _comparisons(condition: Condition) -> Iterator[Comparison]:
     if isinstance(condition, Not):
-        yield from _comparisons(condition.operand, -sign)
+        yield from _comparisons(condition.operand)
     elif isinstance(condition, BoolOp):
         for operand in condition.operands:
-            yield from _comparisons(operand, sign)
+            yield from _comparisons(operand)
     elif condition.right is not None:
-        yield condition, sign
+        yield condition
 
 
 def write_timeline(
@@ -64,11 +76,11 @@ def write_timeline(
     for axis, name in zip(axes[:, 0], signals, strict=False):
         times = [t - start for t, _ in result.signals[name]]
         axis.step(times, [v for _, v in result.signals[name]], where="post", color="tab:blue")
-        for rule, threshold, relaxed in limits.get(name, []):
+        for rule, threshold, held in limits.get(name, []):
             axis.axhline(threshold, color="tab:red", linestyle="--", label=f"{rule} threshold")
-            if relaxed != threshold:
+            if held != threshold:
                 axis.axhline(
-                    relaxed, color="tab:orange", linestyle=":", label=f"{rule} with hysteresis"
+                    held, color="tab:orange", linestyle=":", label=f"{rule} with hysteresis"
                 )
         for rule, begin, finish in result.holds:
             if any(ref.text == name for r in rules.rules if r.name == rule for ref in r.fields):
