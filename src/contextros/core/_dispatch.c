@@ -2,7 +2,7 @@
  *
  * A layered function's stable function stays a plain Python function (users hold it; on
  * the direct path it takes the head's code). While scopes are alive, or its class has
- * layers of its own, its code is a one-line trampoline, `return FIND(...)(<arguments>)`,
+ * layers of its own, its code is a one-line trampoline, `return FIND[receiver](<arguments>)`,
  * and FIND, a `Finder` of this module, returns the head to run: the same look-up as the
  * pure-Python dispatchers (the caller's scope from the context variable, the receiver's
  * table by id, then by class, each table's cached head, else the Python method composing
@@ -23,6 +23,17 @@ typedef struct {
     PyObject *classes;   /* receivers by class (a dict whose __missing__ composes) */
     int by_class;        /* the receiver is the class itself (classmethods) */
     vectorcallfunc vectorcall;
+    /* The last heads table read and its head for `function` (a table's head for a
+     * function is composed once and kept: the table is replaced, never changed, when the
+     * configuration or the partials change). */
+    PyObject *cached_heads;
+    PyObject *cached_head;
+#if PY_VERSION_HEX < 0x030C0000
+    /* The last receiver found by id, while the table has not changed (its version). */
+    void *cached_receiver;
+    uint64_t cached_version;
+    PyObject *cached_found;
+#endif
 } Finder;
 
 static PyObject *str_heads, *str_head, *str_live_scopes, *str_back_to_direct;
@@ -65,18 +76,27 @@ heads_of(PyObject *holder)
 
 /* The cached head of `holder.heads` (a plain dict), else `holder.head(function, ...)`. */
 static PyObject *
-head_of(PyObject *holder, PyObject *function, PyObject *scope_argument)
+head_of(Finder *self, PyObject *holder, PyObject *scope_argument)
 {
+    PyObject *function = self->function;
     PyObject *heads = heads_of(holder);
     if (heads == NULL) {
         return NULL;
     }
-    PyObject *head = PyDict_CheckExact(heads) ? PyDict_GetItemWithError(heads, function) : NULL;
-    Py_XINCREF(head); /* before the table may go */
-    Py_DECREF(heads);
-    if (head != NULL) {
-        return head;
+    if (heads == self->cached_heads) {
+        Py_DECREF(heads);
+        return Py_NewRef(self->cached_head);
     }
+    PyObject *head = PyDict_CheckExact(heads) ? PyDict_GetItemWithError(heads, function) : NULL;
+    if (head != NULL) {
+        PyObject *old_heads = self->cached_heads, *old_head = self->cached_head;
+        self->cached_heads = heads; /* our reference */
+        self->cached_head = Py_NewRef(head);
+        Py_XDECREF(old_heads);
+        Py_XDECREF(old_head);
+        return Py_NewRef(head);
+    }
+    Py_DECREF(heads);
     if (PyErr_Occurred()) {
         return NULL;
     }
@@ -103,7 +123,7 @@ static PyObject *
 scoped_head(Finder *self, PyObject *scope, int restore_direct)
 {
     if (scope != Py_None) {
-        return head_of(scope, self->function, NULL);
+        return head_of(self, scope, NULL);
     }
     if (restore_direct) {
         PyObject *live = PyObject_GetAttr(self->runtime, str_live_scopes);
@@ -135,6 +155,12 @@ scoped_head(Finder *self, PyObject *scope, int restore_direct)
 static PyObject *
 receiver_of(Finder *self, PyObject *receiver)
 {
+#if PY_VERSION_HEX < 0x030C0000
+    uint64_t version = ((PyDictObject *)self->objects)->ma_version_tag;
+    if (receiver == self->cached_receiver && version == self->cached_version) {
+        return Py_NewRef(self->cached_found);
+    }
+#endif
     PyObject *key = PyLong_FromVoidPtr(receiver);
     if (key == NULL) {
         return NULL;
@@ -142,6 +168,15 @@ receiver_of(Finder *self, PyObject *receiver)
     PyObject *own = PyDict_GetItemWithError(self->objects, key);
     Py_DECREF(key);
     if (own != NULL) {
+#if PY_VERSION_HEX < 0x030C0000
+        /* The id stays this object's while it is in the table: a collected object
+         * leaves it first (a new version). */
+        PyObject *old = self->cached_found;
+        self->cached_receiver = receiver;
+        self->cached_version = version;
+        self->cached_found = Py_NewRef(own);
+        Py_XDECREF(old);
+#endif
         return Py_NewRef(own);
     }
     if (PyErr_Occurred()) {
@@ -158,19 +193,10 @@ receiver_of(Finder *self, PyObject *receiver)
     return PyObject_GetItem(self->classes, cls); /* __missing__ computes it */
 }
 
+/* The head for a call on `receiver` (NULL: none; ignored on the scoped path). */
 static PyObject *
-finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames)
+find(Finder *self, PyObject *receiver_object)
 {
-    Finder *self = (Finder *)callable;
-    Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
-    if (kwnames != NULL && PyTuple_GET_SIZE(kwnames)) {
-        PyErr_SetString(PyExc_TypeError, "a contextros finder takes no keyword arguments");
-        return NULL;
-    }
-    if (nargs > 1) {
-        PyErr_SetString(PyExc_TypeError, "a contextros finder takes at most one argument");
-        return NULL;
-    }
     PyObject *scope = current_scope(self);
     if (scope == NULL) {
         return NULL;
@@ -181,7 +207,8 @@ finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyOb
         Py_DECREF(scope);
         return head;
     }
-    PyObject *receiver = nargs ? receiver_of(self, args[0]) : Py_NewRef(Py_None);
+    PyObject *receiver =
+        receiver_object ? receiver_of(self, receiver_object) : Py_NewRef(Py_None);
     if (receiver == NULL) {
         Py_DECREF(scope);
         return NULL;
@@ -190,7 +217,7 @@ finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyOb
         head = scoped_head(self, scope, 0);
     }
     else if (scope == Py_None) {
-        head = head_of(receiver, self->function, Py_None);
+        head = head_of(self, receiver, Py_None);
     }
     else {
         head = PyObject_CallMethodObjArgs(receiver, str_head, self->function, scope, NULL);
@@ -199,6 +226,34 @@ finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyOb
     Py_DECREF(scope);
     return head;
 }
+
+/* FIND(): no receiver; FIND(receiver). */
+static PyObject *
+finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyObject *kwnames)
+{
+    Py_ssize_t nargs = PyVectorcall_NARGS(nargsf);
+    if (kwnames != NULL && PyTuple_GET_SIZE(kwnames)) {
+        PyErr_SetString(PyExc_TypeError, "a contextros finder takes no keyword arguments");
+        return NULL;
+    }
+    if (nargs > 1) {
+        PyErr_SetString(PyExc_TypeError, "a contextros finder takes at most one argument");
+        return NULL;
+    }
+    return find((Finder *)callable, nargs ? args[0] : NULL);
+}
+
+/* FIND[receiver]: the same as FIND(receiver), and cheaper for the interpreter (a
+ * subscript goes straight to this function; a call of a C object does not). */
+static PyObject *
+finder_subscript(PyObject *self, PyObject *receiver)
+{
+    return find((Finder *)self, receiver);
+}
+
+static PyMappingMethods finder_mapping = {
+    .mp_subscript = finder_subscript,
+};
 
 static int
 finder_traverse(Finder *self, visitproc visit, void *arg)
@@ -209,6 +264,11 @@ finder_traverse(Finder *self, visitproc visit, void *arg)
     Py_VISIT(self->head);
     Py_VISIT(self->objects);
     Py_VISIT(self->classes);
+    Py_VISIT(self->cached_heads);
+    Py_VISIT(self->cached_head);
+#if PY_VERSION_HEX < 0x030C0000
+    Py_VISIT(self->cached_found);
+#endif
     return 0;
 }
 
@@ -221,6 +281,12 @@ finder_clear(Finder *self)
     Py_CLEAR(self->head);
     Py_CLEAR(self->objects);
     Py_CLEAR(self->classes);
+    Py_CLEAR(self->cached_heads);
+    Py_CLEAR(self->cached_head);
+#if PY_VERSION_HEX < 0x030C0000
+    Py_CLEAR(self->cached_found);
+    self->cached_receiver = NULL;
+#endif
     return 0;
 }
 
@@ -259,6 +325,12 @@ finder_init(Finder *self, PyObject *args, PyObject *kwargs)
     Py_XSETREF(self->classes, Py_NewRef(classes));
     self->by_class = by_class;
     self->vectorcall = finder_vectorcall;
+    Py_CLEAR(self->cached_heads);
+    Py_CLEAR(self->cached_head);
+#if PY_VERSION_HEX < 0x030C0000
+    Py_CLEAR(self->cached_found);
+    self->cached_receiver = NULL;
+#endif
     return 0;
 }
 
@@ -275,7 +347,7 @@ static PyTypeObject FinderType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "contextros.core._dispatch.Finder",
     .tp_doc = PyDoc_STR("Finder(function, scope, runtime, head, objects=None, classes=None, "
-                        "by_class=False): called as FIND() or FIND(receiver), returns the "
+                        "by_class=False): called as FIND[receiver], FIND(receiver) or FIND(), returns the "
                         "head a layered call runs"),
     .tp_basicsize = sizeof(Finder),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL,
@@ -287,6 +359,7 @@ static PyTypeObject FinderType = {
     .tp_call = PyVectorcall_Call,
     .tp_vectorcall_offset = offsetof(Finder, vectorcall),
     .tp_members = finder_members,
+    .tp_as_mapping = &finder_mapping,
 };
 
 static struct PyModuleDef dispatch_module = {

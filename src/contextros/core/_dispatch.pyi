@@ -3,7 +3,8 @@ from contextvars import ContextVar
 from typing import Any
 
 class Finder:
-    """Called as FIND() or FIND(receiver): the head a layered call runs (_dispatch.c)."""
+    """FIND[receiver] or FIND(receiver) (FIND(): no receiver): the head a layered call
+    runs (_dispatch.c)."""
 
     head: Callable[..., Any]
     function: object
@@ -19,3 +20,4 @@ class Finder:
         by_class: bool = False,
     ) -> None: ...
     def __call__(self, receiver: object = ..., /) -> Callable[..., Any]: ...
+    def __getitem__(self, receiver: object, /) -> Callable[..., Any]: ...

@@ -150,7 +150,7 @@ class LayeredFunction:
         alive puts the direct path back (in C: the Finder does both)."""
         if _FINDER is not None:
             return trampoline_code(
-                [f"return {self._find_key}()({arguments})"],
+                [f"return {self._find_key}[None]({arguments})"],
                 self._freevars,
                 self.qualname,
                 parameters,
@@ -187,9 +187,9 @@ class LayeredFunction:
         codes: dict[str, CodeType] = {}
         if _FINDER is not None:  # the Finder knows the kind
             lookup = (
-                f"{self._find_key}({receiver})"
+                f"{self._find_key}[{receiver}]"
                 if receiver
-                else f"({self._find_key}(args[0]) if args else {self._find_key}())"
+                else f"({self._find_key}[args[0]] if args else {self._find_key}())"
             )
             code = trampoline_code(
                 [f"return {lookup}({arguments})"], self._freevars, self.qualname, parameters
