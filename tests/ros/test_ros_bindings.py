@@ -303,7 +303,9 @@ def test_a_command_during_recovery_waits_for_the_ros_side(
         late = LayerClient(node, "pytest")
         late.wait_for_manager(15.0)
         assert late.query().recovering, "the command must come during recovery"
-        result = late.request(["Slow"], synchronous=True, timeout=5)
+        # Its timeout outlasts the recovery window: a command still waiting at its
+        # deadline is refused (docs/protocol.md, "Deadlines").
+        result = late.request(["Slow"], synchronous=True, timeout=10)
         assert result.success, result.message
         response = call(
             late,
