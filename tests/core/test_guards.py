@@ -21,6 +21,7 @@ from contextros import (
     active_layers,
     layered,
     proceed,
+    set_active,
 )
 
 Big, Wet, Logged = Layer("GuardBig"), Layer("GuardWet"), Layer("GuardLogged")
@@ -189,3 +190,84 @@ def test_contextpy3_guard_on_the_active_layers() -> None:
         with activated(Wet):
             assert greeting.greet() == "Hello World"
         assert greeting.greet() == "Hello"
+
+
+def _proceed_from_a_helper(self: object, area: int) -> str:
+    from contextros import proceed as helper_proceed
+
+    return helper_proceed(self, area)
+
+
+class Shapes:
+    """Guarded partials of every shape: plain ones open with the guard's test in their own
+    frame; one with an exception handler, one taking *args, keep a dispatcher."""
+
+    @layered
+    def plain(self, area: int) -> str:
+        return f"base {area}"
+
+    @plain.partial(Big, when=lambda self, area: area > 10)
+    def plain(self, area: int) -> str:
+        if area > 1000:
+            raise ValueError(f"too big: {area}")
+        return "big " + proceed(self, area)
+
+    @plain.partial(Wet, when=lambda self, area: area % 2 == 0)
+    def plain(self, area: int) -> str:
+        return "wet " + _proceed_from_a_helper(self, area)
+
+    @layered
+    def handler(self, area: int) -> str:
+        return f"base {area}"
+
+    @handler.partial(Big, when=lambda self, area: area > 10)
+    def handler(self, area: int) -> str:
+        try:
+            return "big " + proceed(self, area)
+        except ValueError:
+            return "never"
+
+    @layered
+    def loose(self, area: int) -> str:
+        return f"base {area}"
+
+    @loose.partial(Big, when=lambda self, *args: args[0] > 10)
+    def loose(self, *args: int) -> str:
+        return "big " + proceed(self, *args)
+
+
+@pytest.mark.parametrize("method", ["plain", "handler", "loose"])
+def test_guarded_partials_of_every_shape(method: str) -> None:
+    shapes = Shapes()
+    call = getattr(shapes, method)
+    with activated(Big):
+        assert (call(11), call(3)) == ("big base 11", "base 3")
+        if method != "loose":
+            assert call(area=12) == "big base 12"
+
+
+def test_a_guarded_partial_proceeds_from_a_helper_and_under_another_guard() -> None:
+    shapes = Shapes()
+    with activated(Big, Wet):  # Wet outermost: its guard first
+        assert [shapes.plain(n) for n in (12, 11, 4, 3)] == [
+            "wet big base 12",
+            "big base 11",
+            "wet base 4",
+            "base 3",
+        ]
+
+
+def test_a_guarded_partial_runs_in_one_frame_with_its_own_lines() -> None:
+    """No dispatcher's frame between the call and a plain guarded partial (its traceback
+    shows the call, then the partial's line that raised)."""
+    shapes = Shapes()
+    set_active([Big])
+    try:
+        with pytest.raises(ValueError, match="too big: 2000") as raised:
+            shapes.plain(2000)
+    finally:
+        set_active([])
+    frames = raised.traceback
+    names = [(entry.frame.code.name, entry.frame.code.path) for entry in frames]
+    assert not any(str(path).startswith("<contextros dispatch") for _, path in names), names
+    assert frames[-1].statement.lines[-1].strip() == 'raise ValueError(f"too big: {area}")'

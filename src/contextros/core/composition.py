@@ -22,10 +22,12 @@ from contextros.core.linking import (
     can_take_code_of,
     copy_function,
     fresh_key,
+    guarded_code,
     link,
     mark_base,
     passing_through,
     proceed,
+    remember,
     same_parameters,
     trampoline_code,
 )
@@ -407,7 +409,7 @@ class LayeredFunction:
             linked = link(published.functions[name], published.uses[name], following)
             guard = published.guards.get(name)
             if guard is not None:
-                linked = self._guarded(published.functions[name], guard, linked, skipped)
+                linked = self._guarded(published.functions[name], guard, linked, skipped, following)
             following = skipped = linked
         return following
 
@@ -417,13 +419,24 @@ class LayeredFunction:
         guard: Callable[..., object],
         linked: Callable[..., Any],
         skipped: Callable[..., Any],
+        following: Callable[..., Any],
     ) -> FunctionType:
         """A guarded partial's place in a chain: the partial while the guard holds on the
-        call's arguments, else the next implementation. Generated with the partial's own
-        parameters and defaults, in the stable function's module, so that the stable
-        function can take its code (no trampoline, no tuple or dict per call)."""
-        parameters, arguments = passing_through(partial.__code__)
+        call's arguments, else the next implementation (`skipped`).
+
+        Where CPython's bytecode allows (`guarded_code`), the linked partial itself opens
+        with the guard's test: one frame. Otherwise a dispatcher generated with the
+        partial's own parameters and defaults, in the stable function's module, so that
+        the stable function can take its code (no trampoline, no tuple or dict per call)."""
         keys = {kind: fresh_key(kind) for kind in ("guard", "partial", "skipped")}
+        assert isinstance(linked, FunctionType)
+        merged = guarded_code(linked.__code__, keys["guard"], keys["skipped"])
+        if merged is not None:
+            linked.__globals__[keys["guard"]] = guard
+            linked.__globals__[keys["skipped"]] = skipped
+            remember(merged, following)
+            return copy_function(linked, merged)
+        parameters, arguments = passing_through(partial.__code__)
         namespace = self.stable.__globals__
         namespace[keys["guard"]] = guard
         namespace[keys["partial"]] = linked

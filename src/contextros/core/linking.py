@@ -65,7 +65,7 @@ def proceed(*args: Any, **kwargs: Any) -> Any:
     )
 
 
-def _remember(code: CodeType, following: Callable[..., Any] | None) -> None:
+def remember(code: CodeType, following: Callable[..., Any] | None) -> None:
     key = id(code)
 
     def forget(_: object, key: int = key) -> None:
@@ -77,7 +77,7 @@ def _remember(code: CodeType, following: Callable[..., Any] | None) -> None:
 def mark_base(function: FunctionType) -> None:
     """`proceed` reached from `function` (a base implementation) is an error, even when a
     partial further up the stack proceeded to it."""
-    _remember(function.__code__, None)
+    remember(function.__code__, None)
 
 
 def fresh_key(kind: str) -> str:
@@ -173,7 +173,7 @@ def link(
         code = partial.__code__.replace()  # a code object of its own: the frame names the link
     if code is partial.__code__:  # pragma: no cover - replace() always copies in CPython
         code = code.replace(co_consts=(*code.co_consts, fresh_key("link")))
-    _remember(code, following)
+    remember(code, following)
     return copy_function(partial, code)
 
 
@@ -299,3 +299,66 @@ def trampoline_code(
     if sys.version_info >= (3, 11):
         inner = inner.replace(co_qualname=qualname)
     return inner
+
+
+_GUARD_OPS = {name: dis.opmap.get(name, -1) for name in ("LOAD_GLOBAL", "LOAD_FAST", "RESUME")}
+_GUARD_OPS |= {name: dis.opmap.get(name, -1) for name in ("PRECALL", "CALL", "RETURN_VALUE")}
+_GUARD_OPS["JUMP_IF_TRUE"] = dis.opmap.get("POP_JUMP_FORWARD_IF_TRUE", -1)
+_NO_LOCATION = 0xF8  # a line-table entry of CPython 3.11 with no location, one code unit long
+
+
+def _call_global(index: int, count: int) -> list[int] | None:
+    """3.11 bytecode calling global `index` with the first `count` locals (inline caches
+    included), as (opcode, argument) byte pairs; None when an argument needs EXTENDED_ARG."""
+    if (index << 1) | 1 > 255 or count > 255:
+        return None
+    ops = _GUARD_OPS
+    units = [(ops["LOAD_GLOBAL"], (index << 1) | 1), *[(0, 0)] * 5]
+    units += [(ops["LOAD_FAST"], i) for i in range(count)]
+    units += [(ops["PRECALL"], count), (0, 0), (ops["CALL"], count), *[(0, 0)] * 4]
+    return [byte for unit in units for byte in unit]
+
+
+def guarded_code(code: CodeType, guard: str, skipped: str) -> CodeType | None:
+    """`code` (a partial's) opening with `if not <guard>(args): return <skipped>(args)`,
+    `guard` and `skipped` being global names: a guarded partial in one frame, not behind
+    a dispatcher of its own. Only CPython 3.11's bytecode is written, and only for plain
+    functions (positional-or-keyword parameters, no cells, no exception handlers, not a
+    generator or coroutine); None otherwise (the caller keeps the dispatcher)."""
+    plain = not code.co_flags & (
+        inspect.CO_VARARGS
+        | inspect.CO_VARKEYWORDS
+        | inspect.CO_GENERATOR
+        | inspect.CO_COROUTINE
+        | inspect.CO_ASYNC_GENERATOR
+        | inspect.CO_ITERABLE_COROUTINE
+    )
+    table = code.co_linetable
+    if (
+        sys.version_info[:2] != (3, 11)
+        or not plain
+        or code.co_kwonlyargcount
+        or code.co_cellvars
+        or code.co_freevars
+        or code.co_exceptiontable
+        or code.co_code[0] != _GUARD_OPS["RESUME"]
+        or not table
+        or table[0] & 0x87 != 0x80  # the first entry: RESUME alone
+    ):
+        return None
+    names = (*code.co_names, guard, skipped)
+    count = code.co_argcount
+    call_guard = _call_global(len(names) - 2, count)
+    call_skipped = _call_global(len(names) - 1, count)
+    if call_guard is None or call_skipped is None:
+        return None
+    skip = call_skipped + [_GUARD_OPS["RETURN_VALUE"], 0]
+    prefix = call_guard + [_GUARD_OPS["JUMP_IF_TRUE"], len(skip) // 2] + skip
+    first = 1 + next((i for i, byte in enumerate(table[1:]) if byte & 0x80), len(table) - 1)
+    locations = bytes([_NO_LOCATION]) * (len(prefix) // 2)
+    return code.replace(
+        co_code=code.co_code[:2] + bytes(prefix) + code.co_code[2:],
+        co_names=names,
+        co_linetable=table[:first] + locations + table[first:],
+        co_stacksize=max(code.co_stacksize, count + 2),
+    )
