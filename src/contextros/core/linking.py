@@ -352,8 +352,8 @@ def guarded_code(code: CodeType, guard: str, skipped: str) -> CodeType | None:
     call_skipped = _call_global(len(names) - 1, count)
     if call_guard is None or call_skipped is None:
         return None
-    skip = call_skipped + [_GUARD_OPS["RETURN_VALUE"], 0]
-    prefix = call_guard + [_GUARD_OPS["JUMP_IF_TRUE"], len(skip) // 2] + skip
+    skip = [*call_skipped, _GUARD_OPS["RETURN_VALUE"], 0]
+    prefix = [*call_guard, _GUARD_OPS["JUMP_IF_TRUE"], len(skip) // 2, *skip]
     first = 1 + next((i for i, byte in enumerate(table[1:]) if byte & 0x80), len(table) - 1)
     locations = bytes([_NO_LOCATION]) * (len(prefix) // 2)
     return code.replace(
