@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export OPENBLAS_NUM_THREADS ?= 1
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-core explore fuzz wheel bench lint clean observe dashboard
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-rclcpp test-core explore fuzz wheel bench lint clean observe dashboard
 
 all: test
 
@@ -123,6 +123,44 @@ test: ros cpp $(VENV)/.stamp-dev $(BROWSER)
 test-slow: ros cpp $(VENV)/.stamp-dev
 	$(BYTECODE) src tests examples >/dev/null
 	$(PY) -m pytest -q -m slow
+
+# rclcpp, rclcpp_lifecycle and rclcpp_components have no wheel: built from their vendored,
+# unmodified sources (rclcpp 29.3.0; RCLCPP_SOURCES) into build/rclcpp/prefix, against this
+# venv's wheels (cpp/ros/rclcpp/build_prefix.sh: 3 to 8 min on 2 cores, once; it needs
+# Debian's libconsole-bridge-dev), or a system ROS 2's: `make test-rclcpp
+# RCLCPP_PREFIX=/opt/ros/<distro>`. Then an rclcpp node, a lifecycle node and two components
+# follow the manager beside a Python node (tests/ros/test_rclcpp.py; docs/cpp.md).
+RCLCPP_SOURCES ?= ../shared/vendor/rclcpp/rclcpp-29.3.0-src.tar.gz
+RCLCPP_PREFIX ?=
+# With a system ROS 2 (sourced, with contextros_interfaces built by colcon: docs/install.md)
+# the C++ side is found as in a colcon workspace, without the wheels.
+RCLCPP_BUILD := $(if $(RCLCPP_PREFIX),build/cpp-rclcpp-system,build/cpp-rclcpp)
+# The CMake packages rclcpp's builds use that the other extras do not bring (some are
+# undeclared dependencies of ament_cmake_ros), and rclcpp_lifecycle's.
+RCLCPP_BUILD_WHEELS := ros-ament-cmake-ros==0.14.5 ros-ament-cmake-gmock==2.7.3 \
+  ros-ament-cmake-gtest==2.7.3 ros-ament-cmake-pytest==2.7.3 \
+  ros-ament-cmake-vendor-package==2.7.3 ros-rcl-lifecycle==10.1.3 ros-lifecycle-msgs==2.3.0
+$(VENV)/.stamp-rclcpp-build: $(VENV)/.stamp-buildtools
+	$(UV) $(RCLCPP_BUILD_WHEELS)
+	touch $@
+CONSOLE_BRIDGE := /usr/include/console_bridge/console.h
+$(CONSOLE_BRIDGE):
+	command -v apt-get >/dev/null || { echo "class_loader needs console_bridge (libconsole-bridge-dev)"; exit 1; }
+	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get update -qq
+	$(SUDO) env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libconsole-bridge-dev >/dev/null
+RCLCPP_USED_PREFIX := $(abspath $(or $(RCLCPP_PREFIX),build/rclcpp/prefix))
+
+test-rclcpp: ros $(VENV)/.stamp-dev $(if $(RCLCPP_PREFIX),,$(VENV)/.stamp-rclcpp-build $(CONSOLE_BRIDGE))
+	$(if $(RCLCPP_PREFIX),,$(BUILD_PATH) cpp/ros/rclcpp/build_prefix.sh $(RCLCPP_SOURCES) $(VENV) build/rclcpp)
+	$(BUILD_PATH) cmake -S cpp -B $(RCLCPP_BUILD) -G Ninja \
+	  -DCONTEXTROS_ROS_WHEELS=$(if $(RCLCPP_PREFIX),,$(abspath $(VENV))) \
+	  -DCONTEXTROS_BUILD_EXAMPLES=OFF -DCONTEXTROS_RCLCPP_TESTS=ON \
+	  -DCONTEXTROS_RCLCPP_PREFIX=$(RCLCPP_USED_PREFIX) >/dev/null
+	$(BUILD_PATH) nice -n 10 cmake --build $(RCLCPP_BUILD) --parallel 2 --target \
+	  contextros_test_rclcpp_node contextros_test_lifecycle_node contextros_test_load_component \
+	  contextros_test_rclcpp_components
+	CONTEXTROS_RCLCPP_BUILD=$(abspath $(RCLCPP_BUILD)) CONTEXTROS_RCLCPP_PREFIX=$(RCLCPP_USED_PREFIX) \
+	  $(PY) -m pytest -q -p no:cacheprovider tests/ros/test_rclcpp.py
 
 # Every interleaving of the pure protocol up to a larger bound than `make test` explores
 # (docs/protocol.md, "Exhaustive exploration"): states explored, depth and time.

@@ -14,7 +14,8 @@
 #  1. The typesupport lookup reads the ament index from the *environment* at configure time.
 #  2. The wheels' rmw_implementation is built for Fast DDS only.
 #  3. `<pkg>__rosidl_generator_py` targets carry the wheel builder's include directories.
-#  4. Fast DDS's exported targets name the builder's tinyxml2 and the system OpenSSL.
+#  4. Fast DDS's exported targets name the builder's tinyxml2 and the system OpenSSL;
+#     tracetools' (rclcpp's dependency) the system lttng-ust (the wheel bundles its own).
 #  5. The wheels' libraries find their bundled dependencies (site-packages/ros_*.libs)
 #     through an RPATH that is wrong once installed under <venv>/lib.
 #  6. librcl NEEDs generator_py helpers whose relocations refer to libpython's symbols.
@@ -50,7 +51,7 @@ function(contextros_repair_wheel_targets)
     endif()
     get_property(_links TARGET ${_target} PROPERTY INTERFACE_LINK_LIBRARIES)
     if(_links)
-      list(FILTER _links EXCLUDE REGEX "(^|/)libtinyxml2\\.so|tinyxml2::|OpenSSL::")
+      list(FILTER _links EXCLUDE REGEX "(^|/)libtinyxml2\\.so|tinyxml2::|OpenSSL::|^lttng-ust$")
       set_property(TARGET ${_target} PROPERTY INTERFACE_LINK_LIBRARIES "${_links}")
     endif()
   endforeach()
