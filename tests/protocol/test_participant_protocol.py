@@ -158,6 +158,11 @@ def test_the_vetoes_are_wanted_once_per_proposal() -> None:
     assert not p.wants_vote(proposal)
     assert not p.wants_vote(LayerState(2, ("Night",), manager_id="m1")), "a repeat"
     assert p.wants_vote(LayerState(2, ("Night",), manager_id="m2")), "another manager's"
+    # A late copy of an older proposal, after a newer one was voted on, is over (the
+    # explorer's 7-event trace: vetoes asked twice, two votes on one proposal).
+    p.receive_proposal(LayerState(3, ("Night",), manager_id="m1"), now=0.2)
+    assert not p.wants_vote(proposal)
+    assert p.receive_proposal(proposal, now=0.3) == [] and p.vote_epoch == 3
 
 
 def test_a_successor_carries_on_from_the_participant_it_replaces() -> None:

@@ -208,9 +208,18 @@ ParticipantActions ParticipantProtocol::receive_state(const LayerState& state,
   return actions;
 }
 
+namespace {
+// The managers whose newest proposal voted on a participant remembers (as in Python).
+constexpr std::size_t voted_managers = 8;
+}  // namespace
+
 bool ParticipantProtocol::wants_vote(const LayerState& proposal) const {
-  const bool voted = vote_epoch_ == proposal.epoch && vote_manager_id_ == proposal.manager_id;
-  return !voted && proposal.epoch > newest_epoch() && state_problems(proposal).empty();
+  std::uint64_t newest_voted = 0;
+  for (const auto& [manager, epoch] : voted_) {
+    if (manager == proposal.manager_id) newest_voted = epoch;
+  }
+  return proposal.epoch > std::max(newest_epoch(), newest_voted) &&
+         state_problems(proposal).empty();
 }
 
 ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& proposal,
@@ -235,6 +244,11 @@ ParticipantActions ParticipantProtocol::receive_proposal(const LayerState& propo
   for (const std::string& part : reasons) reason += (reason.empty() ? "" : "; ") + part;
   vote_epoch_ = proposal.epoch;
   vote_manager_id_ = proposal.manager_id;
+  voted_.erase(std::remove_if(voted_.begin(), voted_.end(),
+                              [&](const auto& entry) { return entry.first == proposal.manager_id; }),
+               voted_.end());
+  voted_.emplace_back(proposal.manager_id, proposal.epoch);
+  if (voted_.size() > voted_managers) voted_.erase(voted_.begin());
   vote_yes_ = reasons.empty();
   vote_reason_ = printable(std::move(reason));
   actions.emplace_back(send(now, Repeat::if_lossy));

@@ -246,6 +246,10 @@ TEST(ParticipantProtocol, AVoteIsYesUnlessACriticalSectionOrARelationSaysNo) {
   const ParticipantReport busy =
       only_report(p.receive_proposal(state(4, {"Outdoor"}), t0 + 300ms, "arm moving"));
   EXPECT_EQ(busy.vote_reason, "arm moving; in a critical section");
+  // A late copy of an older proposal, after a newer one was voted on, is over.
+  EXPECT_FALSE(p.wants_vote(state(3, {"Gps"}))) << "a late copy of an older one";
+  EXPECT_TRUE(p.receive_proposal(state(3, {"Gps"}), t0 + 400ms).empty());
+  EXPECT_EQ(p.report().vote_epoch, 4u);
 }
 
 TEST(ParticipantProtocol, RelationViolationsReadAsThePythonOnes) {

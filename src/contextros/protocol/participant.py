@@ -41,6 +41,9 @@ LEAVE_REPEAT_AFTER = 0.05
 # before). On a clean link the repeats only loaded the manager (sync at N=64: 8.7 -> 14.3 ms).
 LOSS_MEMORY = 30.0
 DEFAULT_REPEATS = (0.05, 0.15)
+# The managers whose newest proposal voted on a participant remembers (a restart is a new
+# manager; a late proposal of an older one is over).
+VOTED_MANAGERS = 8
 
 
 class ParticipantProtocol:
@@ -82,6 +85,9 @@ class ParticipantProtocol:
         self.vote_yes = False
         self.vote_reason = ""
         self.vote_manager_id = ""
+        # The newest epoch voted on per manager (the last few managers): a late copy of an
+        # older proposal is over, not voted on (nor its vetoes asked) again.
+        self._voted: dict[str, int] = {}
 
     @property
     def newest_epoch(self) -> int:
@@ -159,8 +165,9 @@ class ParticipantProtocol:
     def wants_vote(self, proposal: LayerState) -> bool:
         """Whether `receive_proposal` would vote on `proposal` (it is new, valid and not
         voted on yet): the adapter asks the application's vetoes once per proposal."""
-        voted = (self.vote_epoch, self.vote_manager_id) == (proposal.epoch, proposal.manager_id)
-        return not voted and proposal.epoch > self.newest_epoch and not state_problems(proposal)
+        newest_voted = self._voted.get(proposal.manager_id, 0)
+        fresh = proposal.epoch > max(self.newest_epoch, newest_voted)
+        return fresh and not state_problems(proposal)
 
     def receive_proposal(
         self, proposal: LayerState, now: float, veto: str = "", vote: bool = True
@@ -186,6 +193,10 @@ class ParticipantProtocol:
         reasons += relation_violations(proposal.active, merge_declarations(self.layers))
         self.vote_epoch = proposal.epoch
         self.vote_manager_id = proposal.manager_id
+        self._voted.pop(proposal.manager_id, None)
+        self._voted[proposal.manager_id] = proposal.epoch
+        while len(self._voted) > VOTED_MANAGERS:
+            del self._voted[next(iter(self._voted))]
         self.vote_yes = not reasons
         self.vote_reason = _printable("; ".join(reasons))
         return [*actions, self._send(now, repeat=True)]

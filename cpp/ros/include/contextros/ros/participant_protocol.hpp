@@ -19,6 +19,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <variant>
 #include <vector>
 
@@ -198,6 +199,9 @@ class ParticipantProtocol {
   std::string vote_manager_id_;
   bool vote_yes_ = false;
   std::string vote_reason_;
+  // The newest epoch voted on per manager (the last few, oldest first): a late copy of an
+  // older proposal is over, not voted on (nor its vetoes asked) again.
+  std::vector<std::pair<std::string, std::uint64_t>> voted_;
 };
 
 }  // namespace contextros::ros
