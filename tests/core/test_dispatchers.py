@@ -8,6 +8,7 @@ import importlib.util
 import os
 import subprocess
 import sys
+import traceback
 from pathlib import Path
 
 import pytest
@@ -118,3 +119,68 @@ def test_a_call_with_no_receiver_on_the_per_receiver_path_names_what_is_missing(
             Loose.speed()
     finally:
         reset_for(r)
+
+
+B = Layer("DispatchersB")
+
+
+def _helper_proceeds(self: object, factor: int) -> int:
+    from contextros import proceed as helper_proceed
+
+    return helper_proceed(self, factor)
+
+
+class Arm:
+    @layered
+    def reach(self, factor: int) -> int:
+        if factor < 0:
+            raise ValueError(f"negative: {factor}")
+        return factor
+
+    @reach.partial(A)
+    def reach(self, factor: int) -> int:
+        if factor > 1000:
+            raise ValueError(f"too far: {factor}")
+        return proceed(self, factor) * 10
+
+    @reach.partial(B)
+    def reach(self, factor: int) -> int:
+        return _helper_proceeds(self, factor) + 1
+
+
+def test_calls_whose_head_is_not_the_one_the_dispatcher_expects() -> None:
+    """The C dispatcher runs the head it expects (the newest scope's, the receiver changed
+    last) in its own frame and calls any other: every mix gives each call its own chain."""
+    a, b, plain = Arm(), Arm(), Arm()
+    activate_for(a, A)
+    activate_for(b, B)  # expected: b's head
+    try:
+        assert [x.reach(2) for x in (a, b, plain, b, a)] == [20, 3, 2, 3, 20]
+        with activated(B):  # expected: the scope's head; a adds A inside it
+            assert [x.reach(2) for x in (a, b, plain)] == [21, 3, 3]
+            with activated(A):
+                assert [x.reach(2) for x in (a, b, plain)] == [21, 30, 30]
+    finally:
+        reset_for(a)
+        reset_for(b)
+    with activated(A):
+        assert plain.reach(3) == 30
+    with activated(B):
+        assert plain.reach(3) == 4
+
+
+def test_the_expected_head_runs_in_the_dispatchers_frame() -> None:
+    """With the C dispatcher, a scoped call of the newest scope's chain has no frame of its
+    own before the partial's (pure Python: one dispatcher frame)."""
+    arm = Arm()
+    try:
+        with activated(A):
+            arm.reach(2000)
+    except ValueError as error:  # its frames are not kept: a kept scope would stay alive
+        frames = traceback.extract_tb(error.__traceback__)
+    assert frames[-1].line == 'raise ValueError(f"too far: {factor}")'
+    dispatchers = [frame for frame in frames if frame.filename.startswith("<contextros")]
+    assert len(dispatchers) == (1 if contextros.core.DISPATCHER == "python" else 0)
+    assert [frame.name for frame in frames[1:]] == (
+        ["reach", "reach"] if contextros.core.DISPATCHER == "python" else ["reach"]
+    )

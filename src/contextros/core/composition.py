@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import inspect
 import os
+import weakref
 from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
 from types import CodeType, FunctionType, MappingProxyType
@@ -23,11 +24,13 @@ from contextros.core.linking import (
     copy_function,
     fresh_key,
     guarded_code,
+    inline_head_code,
     link,
     mark_base,
     passing_through,
     proceed,
     remember,
+    remember_like,
     same_parameters,
     trampoline_code,
 )
@@ -120,6 +123,11 @@ class LayeredFunction:
             [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
         )
         self._find_key = fresh_key("find")
+        self._guess_key = fresh_key("guess")
+        # The C dispatchers with a head's code inlined, by that head and receiver or not.
+        self._inlined: weakref.WeakKeyDictionary[FunctionType, dict[bool, CodeType | None]] = (
+            weakref.WeakKeyDictionary()
+        )
         self._objects_key = fresh_key("objects")
         self._classes_key = fresh_key("classes")
         # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
@@ -475,6 +483,11 @@ class LayeredFunction:
         namespace = self.stable.__globals__
         if _FINDER is not None:
             namespace[self._find_key] = _FINDER(self, runtime.scope, runtime, self.global_head)
+            scope = runtime.newest_scope()
+            guess = self.head_for(scope.configuration()) if scope is not None else None
+            code = self._scoped_exact_code if self._uniform else self._scoped_code
+            self._install_dispatcher(code, guess, receiver=False)
+            return
         else:
             namespace[self._head_key] = self.global_head
             namespace[self._scope_key] = runtime.scope
@@ -497,6 +510,17 @@ class LayeredFunction:
                 receivers.classes,
                 self.receiver_kind == "class",
             )
+            latest = receivers.latest()
+            found = receivers.of(latest) if latest is not None else None
+            guess = self.head_for(found.configuration()) if found is not None else None
+            self._install_dispatcher(
+                self._receiver_exact_code[self.receiver_kind]
+                if self._uniform and self._receiver_exact_code
+                else self._receiver_code[self.receiver_kind],
+                guess,
+                receiver=True,
+            )
+            return
         else:
             namespace[self._head_key] = self.global_head
             namespace[self._scope_key] = runtime.scope
@@ -506,6 +530,33 @@ class LayeredFunction:
             namespace[self._self_key] = self
         exact = self._receiver_exact_code if self._uniform else None
         self.stable.__code__ = (exact or self._receiver_code)[self.receiver_kind]
+
+    def _install_dispatcher(
+        self, code: CodeType, guess: Callable[..., Any] | None, *, receiver: bool
+    ) -> None:
+        """Install a C dispatcher (`code`), or where it can, the same dispatcher opening the
+        code of `guess`, the head it expects (of the newest scope, or of the receiver whose
+        layers changed last): a call that finds that head runs it in this frame, one that
+        finds another calls it (one frame more)."""
+        inlined = None
+        if (
+            self._uniform
+            and isinstance(guess, FunctionType)
+            and can_take_code_of(self.stable, guess)
+            and same_parameters(self.stable, self._signature, guess)
+        ):
+            codes = self._inlined.setdefault(guess, {})
+            if receiver not in codes:
+                made = inline_head_code(guess.__code__, self._find_key, self._guess_key, receiver)
+                if made is not None:
+                    remember_like(made, guess)
+                codes[receiver] = made
+            inlined = codes[receiver]
+        if inlined is not None:
+            self.stable.__globals__[self._guess_key] = guess
+            self.stable.__code__ = inlined
+        else:
+            self.stable.__code__ = code
 
     def installed_objects(self) -> dict[int, Any] | None:
         """The per-object table calls of `stable` read (None: not on the per-receiver path)."""

@@ -301,64 +301,112 @@ def trampoline_code(
     return inner
 
 
-_GUARD_OPS = {name: dis.opmap.get(name, -1) for name in ("LOAD_GLOBAL", "LOAD_FAST", "RESUME")}
-_GUARD_OPS |= {name: dis.opmap.get(name, -1) for name in ("PRECALL", "CALL", "RETURN_VALUE")}
-_GUARD_OPS["JUMP_IF_TRUE"] = dis.opmap.get("POP_JUMP_FORWARD_IF_TRUE", -1)
+_OPS = {
+    name: dis.opmap.get(name, -1)
+    for name in (
+        "LOAD_GLOBAL",
+        "LOAD_FAST",
+        "RESUME",
+        "PRECALL",
+        "CALL",
+        "RETURN_VALUE",
+        "POP_JUMP_FORWARD_IF_TRUE",
+        "POP_JUMP_FORWARD_IF_FALSE",
+        "BINARY_SUBSCR",
+        "COPY",
+        "IS_OP",
+        "POP_TOP",
+        "JUMP_FORWARD",
+        "PUSH_NULL",
+        "SWAP",
+    )
+}
 _NO_LOCATION = 0xF8  # a line-table entry of CPython 3.11 with no location, one code unit long
+_NOT_PLAIN = (
+    inspect.CO_VARARGS
+    | inspect.CO_VARKEYWORDS
+    | inspect.CO_GENERATOR
+    | inspect.CO_COROUTINE
+    | inspect.CO_ASYNC_GENERATOR
+    | inspect.CO_ITERABLE_COROUTINE
+)
 
 
-def _call_global(index: int, count: int) -> list[int] | None:
-    """3.11 bytecode calling global `index` with the first `count` locals (inline caches
-    included), as (opcode, argument) byte pairs; None when an argument needs EXTENDED_ARG."""
-    if (index << 1) | 1 > 255 or count > 255:
+def _op(name: str, argument: int = 0) -> list[int]:
+    """One instruction of CPython 3.11 with its inline caches, as bytes."""
+    code = _OPS[name]
+    return [code, argument] + [0, 0] * dis._inline_cache_entries[code]  # type: ignore[attr-defined]
+
+
+def _call(count: int) -> list[int]:
+    """Call what is below the first `count` locals on the stack with them."""
+    loads = [byte for i in range(count) for byte in _op("LOAD_FAST", i)]
+    return loads + _op("PRECALL", count) + _op("CALL", count)
+
+
+def _prefixed(
+    code: CodeType, names: tuple[str, ...], prefix: list[int], stack: int
+) -> CodeType | None:
+    """`code` with `prefix` (CPython 3.11 bytecode, reading the globals `names`) run first,
+    after RESUME. Only for plain functions (positional-or-keyword parameters, no cells, no
+    exception handlers, not a generator or coroutine) on 3.11; None otherwise."""
+    table = code.co_linetable
+    if (
+        sys.version_info[:2] != (3, 11)
+        or code.co_flags & _NOT_PLAIN
+        or code.co_kwonlyargcount
+        or code.co_cellvars
+        or code.co_freevars
+        or code.co_exceptiontable
+        or code.co_code[0] != _OPS["RESUME"]
+        or not table
+        or table[0] & 0x87 != 0x80  # the first entry: RESUME alone
+        or code.co_argcount > 255
+        or (len(code.co_names) + len(names)) * 2 > 255
+        or max(prefix[1::2]) > 255
+    ):
         return None
-    ops = _GUARD_OPS
-    units = [(ops["LOAD_GLOBAL"], (index << 1) | 1), *[(0, 0)] * 5]
-    units += [(ops["LOAD_FAST"], i) for i in range(count)]
-    units += [(ops["PRECALL"], count), (0, 0), (ops["CALL"], count), *[(0, 0)] * 4]
-    return [byte for unit in units for byte in unit]
+    first = 1 + next((i for i, byte in enumerate(table[1:]) if byte & 0x80), len(table) - 1)
+    locations = bytes([_NO_LOCATION]) * (len(prefix) // 2)
+    return code.replace(
+        co_code=code.co_code[:2] + bytes(prefix) + code.co_code[2:],
+        co_names=(*code.co_names, *names),
+        co_linetable=table[:first] + locations + table[first:],
+        co_stacksize=max(code.co_stacksize, stack),
+    )
 
 
 def guarded_code(code: CodeType, guard: str, skipped: str) -> CodeType | None:
     """`code` (a partial's) opening with `if not <guard>(args): return <skipped>(args)`,
     `guard` and `skipped` being global names: a guarded partial in one frame, not behind
-    a dispatcher of its own. Only CPython 3.11's bytecode is written, and only for plain
-    functions (positional-or-keyword parameters, no cells, no exception handlers, not a
-    generator or coroutine); None otherwise (the caller keeps the dispatcher)."""
-    plain = not code.co_flags & (
-        inspect.CO_VARARGS
-        | inspect.CO_VARKEYWORDS
-        | inspect.CO_GENERATOR
-        | inspect.CO_COROUTINE
-        | inspect.CO_ASYNC_GENERATOR
-        | inspect.CO_ITERABLE_COROUTINE
-    )
-    table = code.co_linetable
-    if (
-        sys.version_info[:2] != (3, 11)
-        or not plain
-        or code.co_kwonlyargcount
-        or code.co_cellvars
-        or code.co_freevars
-        or code.co_exceptiontable
-        or code.co_code[0] != _GUARD_OPS["RESUME"]
-        or not table
-        or table[0] & 0x87 != 0x80  # the first entry: RESUME alone
-    ):
+    a dispatcher of its own (None where `_prefixed` cannot write it)."""
+    count, index = code.co_argcount, len(code.co_names)
+    skip = _op("LOAD_GLOBAL", (index + 1) << 1 | 1) + _call(count) + _op("RETURN_VALUE")
+    prefix = _op("LOAD_GLOBAL", index << 1 | 1) + _call(count)
+    prefix += _op("POP_JUMP_FORWARD_IF_TRUE", len(skip) // 2) + skip
+    return _prefixed(code, (guard, skipped), prefix, count + 2)
+
+
+def inline_head_code(code: CodeType, find: str, head: str, receiver: bool) -> CodeType | None:
+    """`code` (a head's) opening with `h = <find>[key]; if h is not <head>: return h(args)`,
+    `find` and `head` being global names and key the first parameter (`receiver`) or
+    `find` itself: a dispatcher that runs `head`, its guess, in its own frame (None where
+    `_prefixed` cannot write it)."""
+    count, index = code.co_argcount, len(code.co_names)
+    if receiver and not count:
         return None
-    names = (*code.co_names, guard, skipped)
-    count = code.co_argcount
-    call_guard = _call_global(len(names) - 2, count)
-    call_skipped = _call_global(len(names) - 1, count)
-    if call_guard is None or call_skipped is None:
-        return None
-    skip = [*call_skipped, _GUARD_OPS["RETURN_VALUE"], 0]
-    prefix = [*call_guard, _GUARD_OPS["JUMP_IF_TRUE"], len(skip) // 2, *skip]
-    first = 1 + next((i for i, byte in enumerate(table[1:]) if byte & 0x80), len(table) - 1)
-    locations = bytes([_NO_LOCATION]) * (len(prefix) // 2)
-    return code.replace(
-        co_code=code.co_code[:2] + bytes(prefix) + code.co_code[2:],
-        co_names=names,
-        co_linetable=table[:first] + locations + table[first:],
-        co_stacksize=max(code.co_stacksize, count + 2),
-    )
+    key = _op("LOAD_FAST", 0) if receiver else _op("LOAD_GLOBAL", index << 1)
+    call = _op("PUSH_NULL") + _op("SWAP", 2) + _call(count) + _op("RETURN_VALUE")
+    body = _op("POP_TOP")
+    prefix = _op("LOAD_GLOBAL", index << 1) + key + _op("BINARY_SUBSCR") + _op("COPY", 1)
+    prefix += _op("LOAD_GLOBAL", (index + 1) << 1) + _op("IS_OP", 0)
+    prefix += _op("POP_JUMP_FORWARD_IF_FALSE", (len(body) + 2) // 2) + body
+    prefix += _op("JUMP_FORWARD", len(call) // 2) + call
+    return _prefixed(code, (find, head), prefix, count + 2)
+
+
+def remember_like(code: CodeType, function: FunctionType) -> None:
+    """`proceed` reached from a frame of `code` runs what it runs from `function`'s."""
+    entry = _following.get(id(function.__code__))
+    if entry is not None and entry[0]() is function.__code__:
+        remember(code, entry[1])

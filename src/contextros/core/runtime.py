@@ -160,6 +160,10 @@ class _Receiver:
     def __init__(self, configuration: Configuration) -> None:
         self.heads = _heads(configuration)
 
+    def configuration(self) -> Configuration:
+        configuration: Configuration = self.heads[_CONFIGURATION]
+        return configuration
+
     def head(self, function: LayeredFunction, scope: _Scope | None) -> Callable[..., Any]:
         heads = self.heads  # one snapshot, as in _Scope.head
         key: object = function if scope is None else (function, scope.steps)
@@ -216,6 +220,9 @@ class Receivers:
         self._functions: set[LayeredFunction] = set()
         # (receiver, level) pairs suspended after the last decisive switch, for the log.
         self._suspended: set[tuple[object, object]] = set()
+        # The receiver whose own or class-wide layers changed last (weakly): the C
+        # dispatchers expect its heads (`LayeredFunction._install_dispatcher`).
+        self._latest: Callable[[], object] = _nothing
 
     # -- queries ---------------------------------------------------------------------------
 
@@ -254,6 +261,10 @@ class Receivers:
         if found is None:
             found = self.classes[receiver if isinstance(receiver, type) else type(receiver)]
         return found
+
+    def latest(self) -> object:
+        """The receiver whose layers changed last, if it is still there."""
+        return self._latest()
 
     def own_steps(self, target: object) -> Steps:
         if isinstance(target, type):
@@ -308,6 +319,10 @@ class Receivers:
             else:
                 self._forget_object(key)
             classes = [cls]
+        try:
+            self._latest = weakref.ref(target)
+        except TypeError:  # a forgotten object without weak references
+            self._latest = _nothing
         self._rebuild()
         if new:
             self._mark(classes)  # reinstalls every function on the per-receiver path
@@ -462,6 +477,10 @@ class Receivers:
             self.runtime.recompose(function)
 
 
+def _nothing() -> None:
+    return None
+
+
 def _describe(receiver: object) -> str:
     if receiver is None:
         return "a collected object"
@@ -503,6 +522,8 @@ class Runtime:
         self._live_scopes = 0
         self._scopes: weakref.WeakSet[_Scope] = weakref.WeakSet()
         self.scope: ContextVar[_Scope | None] = ContextVar("contextros_scope", default=None)
+        # The scope entered last (weakly): the C dispatchers expect its heads.
+        self._newest_scope: Callable[[], _Scope | None] = _nothing
         self.receivers = Receivers(self)
 
     # -- layered functions ---------------------------------------------------------------
@@ -595,11 +616,11 @@ class Runtime:
         self.active = new
         self.epoch += 1
         self.receivers.refresh(new)  # new receiver tables, installed just below
+        for scope in list(self._scopes):
+            scope.refresh(new)  # before: a dispatcher installed below reads the newest's heads
         for function, head in heads.items():
             function.global_head = head
             self._install(function)
-        for scope in list(self._scopes):
-            scope.refresh(new)
         failure: HookError | None = None
         for layer in arriving:
             try:
@@ -668,6 +689,7 @@ class Runtime:
             self._live_scopes += 1  # _Scope.__del__ gives it back
             scope = _Scope(self, steps)
             self._scopes.add(scope)
+            self._newest_scope = weakref.ref(scope)
             if self._live_scopes == 1:
                 self._reinstall_all()
             return scope
@@ -690,6 +712,10 @@ class Runtime:
         with self.lock:
             if not self._live_scopes:
                 self.recompose(function)
+
+    def newest_scope(self) -> _Scope | None:
+        """The scope entered last, if it is still alive."""
+        return self._newest_scope()
 
     @property
     def live_scopes(self) -> int:
