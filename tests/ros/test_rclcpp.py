@@ -53,6 +53,14 @@ def ready(child: Child) -> dict[str, Any]:
     )
 
 
+def transitions_before(node: Child, epoch: int) -> list[str]:
+    """The lifecycle transitions the node printed before it applied `epoch` (its output is
+    in the order things happened in it)."""
+    applied = node.wait_applied(epoch)
+    events = node.events[: node.events.index(applied)]
+    return [e["transition"] for e in events if e["event"] == "transition"]
+
+
 def registered(client: LayerClient, *nodes: str) -> Any:
     return wait_registry(
         client,
@@ -168,16 +176,19 @@ def test_a_lifecycle_node_follows_the_manager_and_is_driven_by_a_binding(
     flight = client.request(["Flight"], synchronous=True, timeout=5)
     assert flight.success, flight.message
     assert flight.acknowledged == ("/drivers/propeller", "/py")
-    transitions = [e["transition"] for e in propeller.events if e["event"] == "transition"]
-    assert transitions == ["configure", "activate"], "active before the state was published"
+    assert transitions_before(propeller, flight.epoch) == ["configure", "activate"], (
+        "active before the node applied the state"
+    )
     assert propeller.wait_applied(flight.epoch)["active"] == ["Flight"]
 
     landed = client.request([], ["Flight"], synchronous=True, timeout=5)
     assert landed.success, landed.message
-    transitions = [e["transition"] for e in propeller.events if e["event"] == "transition"]
-    assert transitions == ["configure", "activate", "deactivate", "cleanup"], (
-        "back to the state it had before Flight"
-    )
+    assert transitions_before(propeller, landed.epoch) == [
+        "configure",
+        "activate",
+        "deactivate",
+        "cleanup",
+    ], "back to the state it had before Flight"
 
 
 def test_two_components_in_one_container_share_one_participant_and_switch_together(

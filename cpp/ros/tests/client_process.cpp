@@ -19,6 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "json_lines.hpp"
+
 namespace {
 
 using contextros::ros::ActivationFailed;
@@ -26,30 +28,8 @@ using contextros::ros::ActivationResult;
 using contextros::ros::CommandOptions;
 using contextros::ros::ManagerError;
 
-std::string quoted(const std::string& text) {
-  std::string out = "\"";
-  for (const char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof escaped, "\\u%04x", c);
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
-std::string list(const std::vector<std::string>& names) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < names.size(); ++i) {
-    out += (i ? ", " : "") + quoted(names[i]);
-  }
-  return out + "]";
-}
+using contextros::test_output::json_list;
+using contextros::test_output::json_string;
 
 std::vector<std::string> split(const std::string& text) {
   std::vector<std::string> parts;
@@ -66,17 +46,17 @@ void print_answer(const ActivationResult& result) {
   char numbers[96];
   std::snprintf(numbers, sizeof numbers, "\"epoch\": %llu, \"elapsed\": %.6f",
                 static_cast<unsigned long long>(result.epoch), result.elapsed);
-  print(std::string("{\"event\": \"answer\", \"success\": ") + (result.success ? "true" : "false") +
-        ", \"message\": " + quoted(result.message) + ", " + numbers +
-        ", \"active\": " + list(result.active) + ", \"acknowledged\": " +
-        list(result.acknowledged) + ", \"not_acknowledged\": " + list(result.not_acknowledged) +
-        "}");
+  print(std::string("{\"event\": \"answer\", \"success\": ") +
+        (result.success ? "true" : "false") + ", \"message\": " + json_string(result.message) +
+        ", " + numbers + ", \"active\": " + json_list(result.active) +
+        ", \"acknowledged\": " + json_list(result.acknowledged) +
+        ", \"not_acknowledged\": " + json_list(result.not_acknowledged) + "}");
 }
 
 void print_error(const char* kind, const std::string& message,
                  const std::vector<std::string>& not_acknowledged = {}) {
   print(std::string("{\"event\": \"error\", \"kind\": \"") + kind + "\", \"message\": " +
-        quoted(message) + ", \"not_acknowledged\": " + list(not_acknowledged) + "}");
+        json_string(message) + ", \"not_acknowledged\": " + json_list(not_acknowledged) + "}");
 }
 
 // One command line: its verb, layers and options.
@@ -156,8 +136,8 @@ int main(int argc, char** argv) {
   contextros::ros::RclContext context(0, nullptr);
   contextros::ros::RclNode node(context, name);
   contextros::ros::LayerClient client(node.get(), requester);
-  print("{\"event\": \"ready\", \"requester\": " + quoted(client.requester()) +
-        ", \"service\": " + quoted(client.service_name()) + "}");
+  print("{\"event\": \"ready\", \"requester\": " + json_string(client.requester()) +
+        ", \"service\": " + json_string(client.service_name()) + "}");
   for (std::string line; std::getline(std::cin, line);) {
     if (line.empty()) {
       continue;

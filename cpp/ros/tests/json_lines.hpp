@@ -1,5 +1,6 @@
-// One JSON line per event on stdout, for the rclcpp test programs (tests/ros/test_rclcpp.py):
-// {"event": EVENT, FIELDS}, flushed at once; thread-safe.
+// JSON lines on stdout for the C++ test programs driven by tests/ros (participant_process,
+// client_process, rclcpp/*): strings and lists of names as JSON, and
+// {"event": EVENT, FIELDS} lines flushed at once (thread-safe).
 #pragma once
 
 #include <cstdio>
@@ -7,7 +8,7 @@
 #include <string>
 #include <vector>
 
-namespace contextros::rclcpp_tests {
+namespace contextros::test_output {
 
 inline std::string json_string(const std::string& text) {
   std::string out = "\"";
@@ -26,7 +27,7 @@ inline std::string json_string(const std::string& text) {
   return out + "\"";
 }
 
-inline std::string list(const std::vector<std::string>& names) {
+inline std::string json_list(const std::vector<std::string>& names) {
   std::string out = "[";
   for (std::size_t i = 0; i < names.size(); ++i) {
     out += (i ? ", " : "") + json_string(names[i]);
@@ -43,4 +44,4 @@ inline void emit(const std::string& event, const std::string& fields = "") {
   std::fflush(stdout);
 }
 
-}  // namespace contextros::rclcpp_tests
+}  // namespace contextros::test_output

@@ -30,36 +30,16 @@
 #include <thread>
 #include <vector>
 
+#include "json_lines.hpp"
+
 namespace {
 
 using contextros::LayerInfo;
 
 std::mutex output_mutex;
 
-std::string quoted(const std::string& text) {
-  std::string out = "\"";
-  for (char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char escaped[8];
-      std::snprintf(escaped, sizeof escaped, "\\u%04x", c);
-      out += escaped;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
-}
-
-std::string list(const std::vector<std::string>& names) {
-  std::string out = "[";
-  for (std::size_t i = 0; i < names.size(); ++i) {
-    out += (i ? ", " : "") + quoted(names[i]);
-  }
-  return out + "]";
-}
+using contextros::test_output::json_list;
+using contextros::test_output::json_string;
 
 double monotonic_seconds() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch())
@@ -69,8 +49,8 @@ double monotonic_seconds() {
 // One JSON line: {"event": EVENT, "t": <monotonic s>, FIELDS}; `fields` already JSON.
 void emit(const std::string& event, const std::string& fields = "") {
   std::lock_guard<std::mutex> lock(output_mutex);
-  std::printf("{\"event\": %s, \"t\": %.6f%s%s}\n", quoted(event).c_str(), monotonic_seconds(),
-              fields.empty() ? "" : ", ", fields.c_str());
+  std::printf("{\"event\": %s, \"t\": %.6f%s%s}\n", json_string(event).c_str(),
+              monotonic_seconds(), fields.empty() ? "" : ", ", fields.c_str());
   std::fflush(stdout);
 }
 
@@ -210,7 +190,7 @@ int main(int argc, char** argv) {
   follower.emplace(node->get(), participant_options);
   contextros::ros::ContextNode::add_listener([](const contextros::ros::LayerState& state) {
     emit("applied", "\"epoch\": " + std::to_string(state.epoch) + ", \"active\": " +
-                        list(state.active) + ", \"mode\": " + quoted(mode()));
+                        json_list(state.active) + ", \"mode\": " + json_string(mode()));
   });
   if (options.veto_sleep >= 0) {
     const double seconds = options.veto_sleep;
@@ -234,15 +214,15 @@ int main(int argc, char** argv) {
     second_follower.emplace(second->get(), hosted_options);
   }
   std::thread(read_commands).detach();
-  emit("ready", "\"node\": " + quoted(node->fully_qualified_name()) + ", \"mode\": " +
-                    quoted(mode()));
+  emit("ready", "\"node\": " + json_string(node->fully_qualified_name()) + ", \"mode\": " +
+                    json_string(mode()));
 
   int signal_number = 0;
   while (sigwait(&stop_signals, &signal_number) == 0 && signal_number == SIGUSR1) {
     if (follower) {
       follower.reset();  // the carrier goes: the next node of the process takes over
       node.reset();
-      emit("dropped-first", "\"carrier\": " + quoted(contextros::ros::ContextNode::carrier()));
+      emit("dropped-first", "\"carrier\": " + json_string(contextros::ros::ContextNode::carrier()));
     }
   }
   second_follower.reset();

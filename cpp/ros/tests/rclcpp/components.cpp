@@ -11,13 +11,13 @@
 #include <string>
 #include <vector>
 
-#include "events.hpp"
+#include "../json_lines.hpp"
 
 namespace contextros_rclcpp_tests {
 
-using contextros::rclcpp_tests::emit;
-using contextros::rclcpp_tests::list;
-using contextros::rclcpp_tests::json_string;
+using contextros::test_output::emit;
+using contextros::test_output::json_list;
+using contextros::test_output::json_string;
 using Behaviour = std::string();
 using Proceed = contextros::ProceedOf<Behaviour>;
 
@@ -48,7 +48,7 @@ class Component : public rclcpp::Node {
         [node, &behaviour](const contextros::ros::LayerState& state) {
           emit("applied", "\"node\": " + json_string(node) + ", \"epoch\": " +
                               std::to_string(state.epoch) + ", \"active\": " +
-                              list(state.active) + ", \"behaviour\": " +
+                              json_list(state.active) + ", \"behaviour\": " +
                               json_string(behaviour.invoke(nullptr)));
         });
     emit("ready", "\"node\": " + json_string(node) + ", \"carrier\": " +

@@ -10,13 +10,13 @@
 #include <rclcpp_lifecycle/lifecycle_node.hpp>
 #include <string>
 
-#include "events.hpp"
+#include "../json_lines.hpp"
 
 namespace {
 
-using contextros::rclcpp_tests::emit;
-using contextros::rclcpp_tests::list;
-using contextros::rclcpp_tests::json_string;
+using contextros::test_output::emit;
+using contextros::test_output::json_list;
+using contextros::test_output::json_string;
 using CallbackReturn = rclcpp_lifecycle::node_interfaces::LifecycleNodeInterface::CallbackReturn;
 
 class Propeller : public rclcpp_lifecycle::LifecycleNode {
@@ -42,7 +42,8 @@ class Propeller : public rclcpp_lifecycle::LifecycleNode {
 
  private:
   static CallbackReturn reached(const std::string& transition, const std::string& state) {
-    emit("transition", "\"transition\": " + json_string(transition) + ", \"state\": " + json_string(state));
+    emit("transition",
+         "\"transition\": " + json_string(transition) + ", \"state\": " + json_string(state));
     return CallbackReturn::SUCCESS;
   }
   std::unique_ptr<contextros::ros::ManagerFollower> follower_;
@@ -55,7 +56,7 @@ int main(int argc, char** argv) {
   rclcpp::init(argc, argv);
   contextros::ros::ContextNode::add_listener([](const contextros::ros::LayerState& state) {
     emit("applied", "\"epoch\": " + std::to_string(state.epoch) + ", \"active\": " +
-                        list(state.active));
+                        json_list(state.active));
   });
   auto node = std::make_shared<Propeller>();
   emit("ready", "\"node\": " + json_string(node->get_fully_qualified_name()));

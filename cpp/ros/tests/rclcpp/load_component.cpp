@@ -7,11 +7,11 @@
 #include <rclcpp/rclcpp.hpp>
 #include <string>
 
-#include "events.hpp"
+#include "../json_lines.hpp"
 
 int main(int argc, char** argv) {
-  using contextros::rclcpp_tests::emit;
-  using contextros::rclcpp_tests::json_string;
+  using contextros::test_output::emit;
+  using contextros::test_output::json_string;
   using LoadNode = composition_interfaces::srv::LoadNode;
   const auto arguments = rclcpp::init_and_remove_ros_arguments(argc, argv);
   if (arguments.size() != 4) {

@@ -15,14 +15,14 @@
 #include <string>
 #include <vector>
 
-#include "events.hpp"
+#include "../json_lines.hpp"
 
 namespace {
 
 using contextros::LayerInfo;
-using contextros::rclcpp_tests::emit;
-using contextros::rclcpp_tests::list;
-using contextros::rclcpp_tests::json_string;
+using contextros::test_output::emit;
+using contextros::test_output::json_list;
+using contextros::test_output::json_string;
 
 using ModeSignature = std::string();
 using Proceed = contextros::ProceedOf<ModeSignature>;
@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
   }
   contextros::ros::ContextNode::add_listener([](const contextros::ros::LayerState& state) {
     emit("applied", "\"epoch\": " + std::to_string(state.epoch) + ", \"active\": " +
-                        list(state.active) + ", \"mode\": " + json_string(mode()));
+                        json_list(state.active) + ", \"mode\": " + json_string(mode()));
   });
   auto node = std::make_shared<Cleaner>(name, veto);
   emit("ready", "\"node\": " + json_string(node->get_fully_qualified_name()) + ", \"rclcpp\": " +
