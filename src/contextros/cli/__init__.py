@@ -77,7 +77,7 @@ def options_after_command(parser: argparse.ArgumentParser, argv: Sequence[str]) 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run a command; its exit status (docs/cli.md, "Exit statuses")."""
-    exits.stop_on_signals()
+    previous = exits.stop_on_signals()
     args = argparse.Namespace()
     try:
         try:
@@ -87,9 +87,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         sys.stdout.flush()  # here, where a reader gone away is seen, not at exit
         return status
     except exits.Stopped as stop:
-        return 0 if getattr(args, "runs_until_stopped", False) else 128 + stop.signum
+        until_stopped = getattr(args, "runs_until_stopped", False)
+        if callable(until_stopped):  # it depends on the options
+            until_stopped = until_stopped(args)
+        return 0 if until_stopped else 128 + stop.signum
     except BrokenPipeError:
         return exits.output_closed()
+    finally:
+        exits.after_command(None if argv is None else previous)
 
 
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:

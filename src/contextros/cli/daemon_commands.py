@@ -44,6 +44,8 @@ def register(commands: Any) -> None:
     # The key of the environment a command started the daemon for (it serves no other).
     start.add_argument("--expect-key", help=argparse.SUPPRESS)
     start.set_defaults(run=run_start)
+    # Serving in the foreground, it runs until stopped (a signal's status: see cli.main).
+    start.set_defaults(runs_until_stopped=lambda args: args.foreground)
     stop = verbs.add_parser("stop", help="stop the daemon for this ROS environment")
     stop.add_argument(
         "--all",
@@ -69,8 +71,6 @@ def run_start(args: argparse.Namespace) -> int:
         return 1
     if args.foreground:
         from contextros.cli.daemon.server import serve
-
-        args.runs_until_stopped = True  # a signal before it serves ends it as one after
 
         return serve(place, args.idle_timeout, args.warm_namespace, args.expect_key)
     running = client.ping(place)

@@ -16,6 +16,7 @@ import os
 import signal
 import sys
 from types import FrameType
+from typing import Any
 
 CLOSED_OUTPUT = 128 + signal.SIGPIPE
 
@@ -32,9 +33,21 @@ class Stopped(KeyboardInterrupt):
 received: int | None = None
 
 
-def stop_on_signals() -> None:
+Handlers = dict[int, Any]
+
+
+def stop_on_signals() -> Handlers:
+    """Install the handlers; the ones they replace."""
+    return {signum: signal.signal(signum, _stop) for signum in (signal.SIGINT, signal.SIGTERM)}
+
+
+def after_command(previous: Handlers | None) -> None:
+    """Put `previous` handlers back (main called by a program of its own), or, for the
+    command's process (None), ignore the signals: its status is decided, and a signal
+    while the interpreter finalizes would end it with another."""
     for signum in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(signum, _stop)
+        handler = signal.SIG_IGN if previous is None else previous[signum]
+        signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
 
 
 def _stop(signum: int, frame: FrameType | None) -> None:

@@ -236,6 +236,8 @@ def _dashboard(args: argparse.Namespace) -> int:
     try:
         with spinning_in_thread(node, "contextros-dashboard-ros", TEARDOWN_LIMIT):
             serve(server, args.host, args.port, ready)
+    except BrokenPipeError:  # the URL's reader went away: main's to end it
+        raise
     except OSError as error:
         print(
             f"contextros dashboard: cannot listen on {args.host}:{args.port}: {error}",
