@@ -12,7 +12,7 @@ from contextros.cli.watching import SwitchWatch
 
 
 def watch_with_two_nodes() -> SwitchWatch:
-    watch = SwitchWatch(started=100.0)
+    watch = SwitchWatch(started=90.0)  # it has listened long enough to know every node
     watch.state(4, ["Indoor"], "r", "", published=50.0, wall=100.0, now=1.0)
     for node in ("/a", "/b"):
         watch.status(node, 4, leaving=False, wall=100.0, now=1.0)
@@ -43,9 +43,27 @@ def test_the_replayed_current_state_carries_its_age_not_a_latency() -> None:
     (record,) = watch.state(3, [], "m", "", published=988.314, wall=1000.0, now=0.0)
     assert record["event"] == "current" and record["replayed"] is True
     assert record["age_s"] == 11.686 and "delivery_ms" not in record
-    (fresh, applied) = watch.state(4, ["A"], "r", "", published=1000.5, wall=1000.502, now=1.0)
+    (fresh,) = watch.state(4, ["A"], "r", "", published=1000.5, wall=1000.502, now=1.0)
     assert fresh["replayed"] is False and fresh["delivery_ms"] == 2.0
-    assert applied["nodes"] == 0  # nobody live yet
+    assert watch.tick(wall=1002.9) == []
+    (applied,) = watch.tick(wall=1003.0)
+    assert applied["nodes"] == 0  # nobody live, now that the watch would know
+
+
+def test_a_switch_in_the_first_seconds_waits_for_the_nodes_not_heard_yet() -> None:
+    """Issue 25: a watch started 1 s before an activation printed `applied by all 0 live
+    node(s)` while 2 nodes acknowledged: discovery had not matched their statuses yet."""
+    watch = SwitchWatch(started=1000.0)
+    watch.state(1, [], "m", "", published=990.0, wall=1000.1, now=0.1)
+    (state,) = watch.state(2, ["A"], "r", "", published=1001.0, wall=1001.001, now=1.0)
+    assert state["event"] == "state", "no node known yet: not applied by all 0"
+    assert watch.status("/a", 2, leaving=False, wall=1001.5, now=1.5) == [
+        {"event": "node", "node": "/a"}
+    ]
+    assert watch.status("/b", 1, leaving=False, wall=1001.6, now=1.6)[0]["event"] == "node"
+    assert watch.tick(wall=1003.5) == [], "/b has not applied it"
+    (applied,) = watch.status("/b", 2, leaving=False, wall=1003.6, now=3.6)
+    assert applied == {"event": "applied", "epoch": 2, "nodes": 2, "latency_ms": 2600.0}
 
 
 def test_a_node_leaving_is_not_waited_for() -> None:

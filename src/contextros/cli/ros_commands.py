@@ -630,8 +630,13 @@ def _watch(args: argparse.Namespace) -> int:
         for record in records:
             _print_watch(args.json, record)
 
+    def on_tick() -> None:
+        for record in watch.tick(time.time()):
+            _print_watch(args.json, record)
+
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
+    node.create_timer(0.2, on_tick)
     spin_nodes(
         [node],
         until=lambda: watch.finished(args.count, time.monotonic()),

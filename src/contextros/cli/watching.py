@@ -21,6 +21,7 @@ class _Epoch:
     published: float  # wall-clock stamp of the state message
     nodes: set[str]  # the live nodes that must apply it
     pending: set[str]
+    done_at: float  # wall clock when the last of them was seen applying it
 
 
 @dataclass
@@ -33,6 +34,10 @@ class SwitchWatch:
     - A switch is applied by all once every node live at its publication has reported
       an applied epoch at least as new, whichever of the state and the status reached
       the watch first.
+    - A watch knows every live node only once it has listened for the liveness bound
+      (each is heard every heartbeat, once discovery matched it): a switch in its first
+      seconds also waits for the nodes first heard until then (`tick` says when the
+      bound has passed), and is not "applied by all 0 live node(s)" for want of them.
     """
 
     started: float  # wall clock when the watch subscribed
@@ -47,6 +52,9 @@ class SwitchWatch:
 
     def live_nodes(self, now: float) -> set[str]:
         return {n for n, t in self._last_heard.items() if now - t < self.liveness}
+
+    def knows_every_node(self, wall: float) -> bool:
+        return wall - self.started >= self.liveness
 
     def state(
         self,
@@ -79,9 +87,9 @@ class SwitchWatch:
         self.switches += 1
         live = self.live_nodes(now)
         pending = {n for n in live if self._applied.get(n, 0) < epoch}
-        self._waiting[epoch] = _Epoch(published, live, pending)
-        if not pending:
-            records.append(self._applied_record(epoch, wall))
+        self._waiting[epoch] = _Epoch(published, live, pending, done_at=wall)
+        if not pending and self.knows_every_node(wall):
+            records.append(self._applied_record(epoch))
         return records
 
     def status(
@@ -96,18 +104,30 @@ class SwitchWatch:
                 records.append({"event": "node", "node": node})
             self._last_heard[node] = now
         self._applied[node] = max(self._applied.get(node, 0), applied_epoch)
+        learning = not self.knows_every_node(wall)
         for epoch, waiting in sorted(self._waiting.items()):
-            if applied_epoch >= epoch or leaving:
+            if learning and not leaving and node not in waiting.nodes:
+                waiting.nodes.add(node)  # live all along, heard only now
+                if applied_epoch < epoch:  # (one that applied it already: not timed)
+                    waiting.pending.add(node)
+            if node in waiting.pending and (applied_epoch >= epoch or leaving):
                 waiting.pending.discard(node)
-                if leaving:
-                    waiting.nodes.discard(node)
-            if not waiting.pending:
-                records.append(self._applied_record(epoch, wall))
-        return records
+                waiting.done_at = wall
+            if leaving:
+                waiting.nodes.discard(node)
+        return records + self.tick(wall)
 
-    def _applied_record(self, epoch: int, wall: float) -> Record:
+    def tick(self, wall: float) -> list[Record]:
+        """The switches applied by all that can be reported now (call it now and then: a
+        switch in the watch's first seconds is reported once it knows every node)."""
+        if not self.knows_every_node(wall):
+            return []
+        done = [epoch for epoch, waiting in sorted(self._waiting.items()) if not waiting.pending]
+        return [self._applied_record(epoch) for epoch in done]
+
+    def _applied_record(self, epoch: int) -> Record:
         waiting = self._waiting.pop(epoch)
-        latency = (wall - waiting.published) * 1000
+        latency = (waiting.done_at - waiting.published) * 1000
         return {
             "event": "applied",
             "epoch": epoch,
