@@ -82,12 +82,17 @@ void Participant::Impl::run(const ParticipantActions& actions) {
       for (const std::string& layer : protocol.report().active) {
         active += (active.empty() ? "" : ", ") + layer;
       }
-      RCUTILS_LOG_WARN_NAMED(logger, "no Layer manager heard for %.1f s: keeping layers [%s] "
-                             "(epoch %llu)", seconds, active.c_str(),
+      // Never joined one yet (a node started before its manager): not "lost", not "again".
+      never_joined = protocol.report().applied_manager_id.empty();
+      RCUTILS_LOG_WARN_NAMED(logger, "no Layer manager heard %s %.1f s: keeping layers [%s] "
+                             "(epoch %llu)", never_joined ? "in the first" : "for", seconds,
+                             active.c_str(),
                              static_cast<unsigned long long>(protocol.applied_epoch()));
       manager_changes.push_back(true);
     } else if (const auto* found = std::get_if<ManagerFound>(&action)) {
-      RCUTILS_LOG_INFO_NAMED(logger, "Layer manager %s heard again", found->manager_id.c_str());
+      const std::string who = found->manager_id.empty() ? "" : " " + found->manager_id;
+      RCUTILS_LOG_INFO_NAMED(logger, "Layer manager%s heard%s", who.c_str(),
+                             never_joined ? " for the first time" : " again");
       manager_changes.push_back(false);
       restore_applied = true;
     }

@@ -135,6 +135,7 @@ struct Participant::Impl {
   std::vector<LayerState> applied_states;  // to tell the listeners
   std::vector<LayerState> to_apply;        // by event(), once `mutex` is released
   bool restore_applied = false;            // the manager was found again
+  bool never_joined = false;               // lost before any manager's state: the log's words
   // The proposal (epoch, manager) whose vetoes think in their worker thread, if any.
   std::optional<std::pair<std::uint64_t, std::string>> asking;
   std::optional<Clock::time_point> last_rejection_logged;

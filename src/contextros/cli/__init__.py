@@ -9,6 +9,7 @@ from collections.abc import Sequence
 
 from contextros import __version__
 from contextros.cli import daemon_commands, exits, language_commands, observe_commands, ros_commands
+from contextros.cli.answered_in_child import INTERRUPTED
 from contextros.cli.ros_arguments import split_ros_arguments
 from contextros.cli.ros_commands import USAGE
 from contextros.installation import cmake_package_prefixes, ros_problem
@@ -115,7 +116,7 @@ def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:
         print(f"contextros {args.command}: {problem}", file=sys.stderr)
         return USAGE
     status: int = args.run(args)
-    if status == ros_commands.INTERRUPTED:  # the command's own client said so
+    if status == INTERRUPTED:  # the command's own client said so
         return exits.interrupted_status()
     return status
 
