@@ -340,13 +340,17 @@ class ContextParticipant:
 
     def _manager_changed(self, event: ManagerLost | ManagerFound) -> None:
         lost = isinstance(event, ManagerLost)
+        joined = bool(self.protocol.applied_manager_id)  # (a node started before its manager)
         if isinstance(event, ManagerLost):
             self.node.get_logger().warning(
-                f"no Layer manager heard for {event.silent_for:.1f} s: keeping layers "
+                f"no Layer manager heard {'for' if joined else 'in the first'} "
+                f"{event.silent_for:.1f} s: keeping layers "
                 f"[{', '.join(self.protocol.active)}] (epoch {self.protocol.applied_epoch})"
             )
         else:
-            self.node.get_logger().info(f"Layer manager {event.manager_id} heard again")
+            who = f" {event.manager_id}" if event.manager_id else ""
+            again = "again" if joined else "for the first time"
+            self.node.get_logger().info(f"Layer manager{who} heard {again}")
         for listener in list(self._manager_listeners):
             try:
                 listener(lost)
