@@ -39,6 +39,20 @@ def test_the_c_dispatcher_is_selected_when_built_and_pure_python_on_request() ->
     assert _dispatcher_of({"CONTEXTROS_PURE_PYTHON": "0"}) == ("c" if BUILT else "python")
 
 
+def test_a_stale_build_falls_back_to_pure_python_and_says_so(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    if not BUILT:
+        pytest.skip("the C dispatcher is not built (make builds it)")
+    from contextros.core import _dispatch, composition
+
+    monkeypatch.delenv("CONTEXTROS_PURE_PYTHON", raising=False)
+    assert composition._finder_type() is _dispatch.Finder
+    monkeypatch.setattr(_dispatch, "ABI", 0)
+    with pytest.warns(RuntimeWarning, match="built from other sources"):
+        assert composition._finder_type() is None
+
+
 def test_the_core_tests_pass_under_the_other_dispatcher() -> None:
     if not BUILT:
         pytest.skip("the C dispatcher is not built (make builds it): only pure Python here")

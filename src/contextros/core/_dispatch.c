@@ -386,7 +386,9 @@ PyInit__dispatch(void)
     if (module == NULL) {
         return NULL;
     }
-    if (PyModule_AddObjectRef(module, "Finder", (PyObject *)&FinderType) < 0) {
+    /* What composition.py expects (it falls back to pure Python on a stale build). */
+    if (PyModule_AddIntConstant(module, "ABI", 1) < 0 ||
+        PyModule_AddObjectRef(module, "Finder", (PyObject *)&FinderType) < 0) {
         Py_DECREF(module);
         return NULL;
     }

@@ -2,6 +2,8 @@ from collections.abc import Callable
 from contextvars import ContextVar
 from typing import Any
 
+ABI: int
+
 class Finder:
     """FIND[receiver] or FIND(receiver) (FIND(): no receiver): the head a layered call
     runs (_dispatch.c)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import inspect
 import os
+import warnings
 import weakref
 from collections.abc import Callable, Mapping
 from contextlib import AbstractContextManager
@@ -39,16 +40,28 @@ from contextros.errors import LayerDefinitionError, NoImplementationError, Proce
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+_ABI = 1  # the version of `_dispatch.c` this module drives
+
+
 def _finder_type() -> Any:
     """The C look-up of the scoped and per-receiver dispatchers (`_dispatch.c`), or None:
-    not built, or CONTEXTROS_PURE_PYTHON=1; the dispatchers are then pure Python."""
+    not built, built from other sources (warned), or CONTEXTROS_PURE_PYTHON=1; the
+    dispatchers are then pure Python."""
     if os.environ.get("CONTEXTROS_PURE_PYTHON", "") not in ("", "0"):
         return None
     try:
-        from contextros.core._dispatch import Finder
+        from contextros.core import _dispatch
     except ImportError:
         return None
-    return Finder
+    if getattr(_dispatch, "ABI", None) != _ABI:
+        warnings.warn(
+            f"contextros: {_dispatch.__file__} was built from other sources than this "
+            "package's (`make` builds it again); the core uses its pure-Python dispatchers",
+            RuntimeWarning,
+            stacklevel=1,
+        )
+        return None
+    return _dispatch.Finder
 
 
 _FINDER = _finder_type()
