@@ -155,3 +155,19 @@ print(library + "|" + ";".join(bundled), end="")
   contextros_repair_wheel_targets()
   cmake_language(DEFER DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}" CALL contextros_repair_wheel_targets)
 endmacro()
+
+# Removed names keep a stub for one release that says what replaces them
+# (tests/cli/test_public_surface.py keeps the list).
+# contextros_use_ros_wheels(<target>): removed in 0.1.0, goes in 0.2.0. Linking
+# contextros::ros now brings what it added; a program that runs rcl without contextros::ros
+# calls contextros_ros_wheels_link_interface(<target> PRIVATE), as this stub does.
+function(contextros_use_ros_wheels target)
+  message(DEPRECATION
+    "contextros_use_ros_wheels() was removed in ContextROS 0.1.0 and goes in 0.2.0: "
+    "target_link_libraries(${target} PRIVATE contextros::ros) brings what it added; a "
+    "program that runs rcl without contextros::ros calls "
+    "contextros_ros_wheels_link_interface(${target} PRIVATE) (docs/cpp.md)")
+  if(CONTEXTROS_ROS_WHEELS AND TARGET ${target})
+    contextros_ros_wheels_link_interface(${target} PRIVATE)
+  endif()
+endfunction()
