@@ -24,6 +24,7 @@
 #include <future>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "contextros/errors.hpp"
