@@ -89,12 +89,14 @@ head_of(Finder *self, PyObject *holder, PyObject *scope_argument)
     }
     PyObject *head = PyDict_CheckExact(heads) ? PyDict_GetItemWithError(heads, function) : NULL;
     if (head != NULL) {
+        /* The result's reference first: releasing the old cache may run any code. */
+        Py_INCREF(head);
         PyObject *old_heads = self->cached_heads, *old_head = self->cached_head;
         self->cached_heads = heads; /* our reference */
         self->cached_head = Py_NewRef(head);
         Py_XDECREF(old_heads);
         Py_XDECREF(old_head);
-        return Py_NewRef(head);
+        return head;
     }
     Py_DECREF(heads);
     if (PyErr_Occurred()) {
@@ -171,13 +173,16 @@ receiver_of(Finder *self, PyObject *receiver)
 #if PY_VERSION_HEX < 0x030C0000
         /* The id stays this object's while it is in the table: a collected object
          * leaves it first (a new version). */
+        Py_INCREF(own); /* the result's, before releasing the old cache */
         PyObject *old = self->cached_found;
         self->cached_receiver = receiver;
         self->cached_version = version;
         self->cached_found = Py_NewRef(own);
         Py_XDECREF(old);
-#endif
+        return own;
+#else
         return Py_NewRef(own);
+#endif
     }
     if (PyErr_Occurred()) {
         return NULL;
