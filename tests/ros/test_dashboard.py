@@ -105,6 +105,8 @@ def test_a_switch_shows_on_the_page_with_the_node_that_applied_it(
     newest = switches.first
     newest.filter(has_text=re.compile(r"/dash1 \d+\.\d ms")).wait_for(timeout=5_000)
     assert newest.locator("td").first.inner_text() == str(result.epoch)
+    shown_at = newest.locator("td").nth(1).inner_text()
+    assert re.fullmatch(r"\d\d:\d\d:\d\d\.\d{3}", shown_at), f"to the ms: {shown_at}"
     nodes = section.locator('[data-testid="nodes"] tbody tr', has_text="/dash1")
     cells = nodes.locator("td").all_inner_texts()
     assert cells[:5] == ["/dash1", "Python", "ok", str(result.epoch), ""], cells

@@ -75,7 +75,7 @@ function renderRobot(robot) {
 
   section.append(el("h3", { text: "Switches (newest first)" }), table(
     ["epoch", "time", "active", "by", "applied after (per node)"],
-    robot.history.map((s) => [s.epoch, new Date(s.published * 1000).toLocaleTimeString(),
+    robot.history.map((s) => [s.epoch, clockTime(s.published),
       s.active.join(", ") || "none", `${s.requester}: ${s.reason}`,
       Object.entries(s.latency_ms).map(([node, ms]) => `${node} ${ms.toFixed(1)} ms`).join(", ")]),
     "switches", "no switch since the dashboard started"));
@@ -94,6 +94,14 @@ function renderRobot(robot) {
       b.last_result ? el("span", { cls: b.ok ? "" : "error", text: `${b.ok ? "ok" : "FAILED"}: ${b.last_result}` }) : "-"]),
     "bindings", "no parameter or lifecycle bindings"));
   return section;
+}
+
+// A switch's wall-clock time to the millisecond (switches come within ms of each other).
+function clockTime(seconds) {
+  const d = new Date(seconds * 1000);
+  const two = (n) => String(n).padStart(2, "0");
+  return `${two(d.getHours())}:${two(d.getMinutes())}:${two(d.getSeconds())}` +
+    `.${String(d.getMilliseconds()).padStart(3, "0")}`;
 }
 
 function render(snapshot) {
