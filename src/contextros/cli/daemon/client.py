@@ -146,6 +146,13 @@ def answer_for(request: dict[str, Any], timeout: float) -> dict[str, Any] | None
         return None
     try:
         answer = ask(place, request, timeout)
+    except KeyboardInterrupt:  # Ctrl-C or SIGTERM (contextros.cli.exits) while it answers
+        unknown = (
+            "nothing was changed"
+            if request["command"] == "status"
+            else ("whether it was carried out is unknown; see `contextros status`")
+        )
+        return {"outcome": "interrupted", "message": f"interrupted; {unknown}"}
     except DaemonUnreachable as error:
         startable = error.start_one and find_spec("rclpy") is not None
         if startable and not starting(place) and not _started_lately(place):
