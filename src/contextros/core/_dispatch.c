@@ -2,8 +2,9 @@
  *
  * A layered function's stable function stays a plain Python function (users hold it; on
  * the direct path it takes the head's code). While scopes are alive, or its class has
- * layers of its own, its code is a one-line trampoline, `return FIND[receiver](<arguments>)`,
- * and FIND, a `Finder` of this module, returns the head to run: the same look-up as the
+ * layers of its own, its code is a trampoline, `return FIND[receiver](<arguments>)`, or
+ * the body of the head it expects behind `if FIND[receiver] is not None: return
+ * FIND(receiver)(<arguments>)`; FIND, a `Finder` of this module, finds the head to run: the same look-up as the
  * pure-Python dispatchers (the caller's scope from the context variable, the receiver's
  * table by id, then by class, each table's cached head, else the Python method composing
  * it), without the bytecode. The trampoline then calls the head from Python (no C frame
@@ -21,6 +22,7 @@ typedef struct {
     PyObject *head;      /* the head under the decisive configuration */
     PyObject *objects;   /* receivers by id(object), or None: no receiver look-up */
     PyObject *classes;   /* receivers by class (a dict whose __missing__ composes) */
+    PyObject *expected;  /* the head whose code the dispatcher runs itself, or NULL */
     int by_class;        /* the receiver is the class itself (classmethods) */
     vectorcallfunc vectorcall;
     /* The last heads table read and its head for `function` (a table's head for a
@@ -248,12 +250,18 @@ finder_vectorcall(PyObject *callable, PyObject *const *args, size_t nargsf, PyOb
     return find((Finder *)callable, nargs ? args[0] : NULL);
 }
 
-/* FIND[receiver]: the same as FIND(receiver), and cheaper for the interpreter (a
- * subscript goes straight to this function; a call of a C object does not). */
+/* FIND[receiver]: the same as FIND(receiver), except that the head the dispatcher expects
+ * (whose code it runs itself) is None; and cheaper for the interpreter (a subscript goes
+ * straight to this function; a call of a C object does not). */
 static PyObject *
 finder_subscript(PyObject *self, PyObject *receiver)
 {
-    return find((Finder *)self, receiver);
+    PyObject *head = find((Finder *)self, receiver);
+    if (head != NULL && head == ((Finder *)self)->expected) {
+        Py_DECREF(head);
+        Py_RETURN_NONE;
+    }
+    return head;
 }
 
 static PyMappingMethods finder_mapping = {
@@ -269,6 +277,7 @@ finder_traverse(Finder *self, visitproc visit, void *arg)
     Py_VISIT(self->head);
     Py_VISIT(self->objects);
     Py_VISIT(self->classes);
+    Py_VISIT(self->expected);
     Py_VISIT(self->cached_heads);
     Py_VISIT(self->cached_head);
 #if PY_VERSION_HEX < 0x030C0000
@@ -286,6 +295,7 @@ finder_clear(Finder *self)
     Py_CLEAR(self->head);
     Py_CLEAR(self->objects);
     Py_CLEAR(self->classes);
+    Py_CLEAR(self->expected);
     Py_CLEAR(self->cached_heads);
     Py_CLEAR(self->cached_head);
 #if PY_VERSION_HEX < 0x030C0000
@@ -345,6 +355,8 @@ static PyMemberDef finder_members[] = {
     {"function", T_OBJECT_EX, offsetof(Finder, function), READONLY, "the layered function"},
     {"objects", T_OBJECT_EX, offsetof(Finder, objects), READONLY,
      "the receivers by id(object) (None: the scoped path)"},
+    {"expected", T_OBJECT, offsetof(Finder, expected), 0,
+     "the head FIND[receiver] gives as None (the dispatcher runs its code itself)"},
     {NULL},
 };
 

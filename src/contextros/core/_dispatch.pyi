@@ -11,6 +11,7 @@ class Finder:
     head: Callable[..., Any]
     function: object
     objects: dict[int, Any] | None
+    expected: Callable[..., Any] | None
     def __init__(
         self,
         function: object,
@@ -22,4 +23,4 @@ class Finder:
         by_class: bool = False,
     ) -> None: ...
     def __call__(self, receiver: object = ..., /) -> Callable[..., Any]: ...
-    def __getitem__(self, receiver: object, /) -> Callable[..., Any]: ...
+    def __getitem__(self, receiver: object, /) -> Callable[..., Any] | None: ...

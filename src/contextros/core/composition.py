@@ -136,7 +136,6 @@ class LayeredFunction:
             [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
         )
         self._find_key = fresh_key("find")
-        self._guess_key = fresh_key("guess")
         # The C dispatchers with a head's code inlined, by that head and receiver or not.
         self._inlined: weakref.WeakKeyDictionary[FunctionType, dict[bool, CodeType | None]] = (
             weakref.WeakKeyDictionary()
@@ -560,13 +559,13 @@ class LayeredFunction:
         ):
             codes = self._inlined.setdefault(guess, {})
             if receiver not in codes:
-                made = inline_head_code(guess.__code__, self._find_key, self._guess_key, receiver)
+                made = inline_head_code(guess.__code__, self._find_key, receiver)
                 if made is not None:
                     remember_like(made, guess)
                 codes[receiver] = made
             inlined = codes[receiver]
         if inlined is not None:
-            self.stable.__globals__[self._guess_key] = guess
+            self.stable.__globals__[self._find_key].expected = guess
             self.stable.__code__ = inlined
         else:
             self.stable.__code__ = code

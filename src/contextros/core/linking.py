@@ -311,12 +311,8 @@ _OPS = {
         "CALL",
         "RETURN_VALUE",
         "POP_JUMP_FORWARD_IF_TRUE",
-        "POP_JUMP_FORWARD_IF_FALSE",
+        "POP_JUMP_FORWARD_IF_NONE",
         "BINARY_SUBSCR",
-        "COPY",
-        "IS_OP",
-        "POP_TOP",
-        "JUMP_FORWARD",
         "PUSH_NULL",
         "SWAP",
     )
@@ -387,22 +383,20 @@ def guarded_code(code: CodeType, guard: str, skipped: str) -> CodeType | None:
     return _prefixed(code, (guard, skipped), prefix, count + 2)
 
 
-def inline_head_code(code: CodeType, find: str, head: str, receiver: bool) -> CodeType | None:
-    """`code` (a head's) opening with `h = <find>[key]; if h is not <head>: return h(args)`,
-    `find` and `head` being global names and key the first parameter (`receiver`) or
-    `find` itself: a dispatcher that runs `head`, its guess, in its own frame (None where
-    `_prefixed` cannot write it)."""
+def inline_head_code(code: CodeType, find: str, receiver: bool) -> CodeType | None:
+    """`code` (a head's) opening with `if <find>[key] is not None: return <find>(key)(args)`,
+    `find` being a global name (a C Finder whose subscript gives None for this head) and key
+    the first parameter (`receiver`) or `find` itself: a dispatcher that runs the head it
+    expects in its own frame (None where `_prefixed` cannot write it)."""
     count, index = code.co_argcount, len(code.co_names)
     if receiver and not count:
         return None
     key = _op("LOAD_FAST", 0) if receiver else _op("LOAD_GLOBAL", index << 1)
-    call = _op("PUSH_NULL") + _op("SWAP", 2) + _call(count) + _op("RETURN_VALUE")
-    body = _op("POP_TOP")
-    prefix = _op("LOAD_GLOBAL", index << 1) + key + _op("BINARY_SUBSCR") + _op("COPY", 1)
-    prefix += _op("LOAD_GLOBAL", (index + 1) << 1) + _op("IS_OP", 0)
-    prefix += _op("POP_JUMP_FORWARD_IF_FALSE", (len(body) + 2) // 2) + body
-    prefix += _op("JUMP_FORWARD", len(call) // 2) + call
-    return _prefixed(code, (find, head), prefix, count + 2)
+    other = _op("LOAD_GLOBAL", index << 1 | 1) + key + _op("PRECALL", 1) + _op("CALL", 1)
+    other += _op("PUSH_NULL") + _op("SWAP", 2) + _call(count) + _op("RETURN_VALUE")
+    prefix = _op("LOAD_GLOBAL", index << 1) + key + _op("BINARY_SUBSCR")
+    prefix += _op("POP_JUMP_FORWARD_IF_NONE", len(other) // 2) + other
+    return _prefixed(code, (find,), prefix, count + 3)
 
 
 def remember_like(code: CodeType, function: FunctionType) -> None:
