@@ -84,3 +84,13 @@ def test_a_node_counts_until_the_managers_liveness_bound() -> None:
     watch.status("/a", 5, leaving=False, wall=101.01, now=3.5)
     records = watch.status("/b", 5, leaving=False, wall=101.02, now=3.5)
     assert records == [{"event": "applied", "epoch": 5, "nodes": 2, "latency_ms": 20.0}]
+
+
+def test_a_counted_watch_ends_once_its_last_switch_is_reported() -> None:
+    watch = SwitchWatch(started=1000.0)
+    watch.state(1, [], "m", "", published=990.0, wall=1000.1, now=0.1)  # the current one
+    watch.state(2, ["A"], "r", "", published=1001.0, wall=1001.001, now=1.0)
+    watch.status("/a", 2, leaving=False, wall=1001.1, now=1.1)
+    assert not watch.finished(1, now=3.5, wall=1002.9), "its switch is not reported yet"
+    assert [r["event"] for r in watch.tick(wall=1003.0)] == ["applied"]
+    assert watch.finished(1, now=3.6, wall=1003.0)

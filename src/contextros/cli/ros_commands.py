@@ -639,7 +639,7 @@ def _watch(args: argparse.Namespace) -> int:
     node.create_timer(0.2, on_tick)
     spin_nodes(
         [node],
-        until=lambda: watch.finished(args.count, time.monotonic()),
+        until=lambda: watch.finished(args.count, time.monotonic(), time.time()),
         timeout=args.duration,
         teardown_limit=TEARDOWN_LIMIT,
     )

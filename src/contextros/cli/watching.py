@@ -135,8 +135,11 @@ class SwitchWatch:
             "latency_ms": round(latency, 3),
         }
 
-    def finished(self, count: int | None, now: float) -> bool:
-        """After the last counted switch, wait (a little) for its acknowledgements too."""
+    def finished(self, count: int | None, now: float, wall: float) -> bool:
+        """After the last counted switch, wait (a little) for its acknowledgements too,
+        once the watch knows every node."""
         if count is None or self.switches < count:
             return False
-        return not self._waiting or now - self.last_switch > 2.0
+        if not self._waiting:
+            return True
+        return self.knows_every_node(wall) and now - self.last_switch > 2.0
