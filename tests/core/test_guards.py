@@ -272,3 +272,79 @@ def test_a_guarded_partial_runs_in_one_frame_with_its_own_lines() -> None:
     assert frames[-1].line == 'raise ValueError(f"too big: {area}")'
     names = [(frame.name, frame.filename) for frame in frames]
     assert not any(path.startswith("<contextros dispatch") for _, path in names), names
+
+
+LIMIT = 10
+
+
+class Limits:
+    def __init__(self) -> None:
+        self.calls = 0
+
+    def above(self, robot: object, area: int) -> bool:
+        self.calls += 1
+        return area > LIMIT
+
+
+LIMITS = Limits()
+
+
+class Guards:
+    """Guards of every kind: plain functions of this module run in the partial's frame;
+    a bound method, or one taking other parameters, is called."""
+
+    @layered
+    def test(self, area: int) -> str:
+        return "base"
+
+    @test.partial(Big, when=lambda self, area: area > LIMIT and len(str(area)) < 4)
+    def test(self, area: int) -> str:
+        return "big " + proceed(self, area)
+
+    @test.partial(Wet, when=lambda self, area: any(d == "7" for d in str(area)))
+    def test(self, area: int) -> str:
+        return "wet " + proceed(self, area)
+
+    @test.partial(Logged, when=LIMITS.above)
+    def test(self, area: int) -> str:
+        return "logged " + proceed(self, area)
+
+    @layered
+    def failing(self, area: int) -> str:
+        return "base"
+
+    @failing.partial(Big, when=lambda self, area: 1 // (area - 5) > 0)
+    def failing(self, area: int) -> str:
+        return "big"
+
+
+@pytest.mark.parametrize(
+    ("layers", "results"),
+    [
+        ([Big], ["big base", "base", "base", "big base"]),
+        ([Wet], ["base", "base", "wet base", "wet base"]),
+        ([Logged], ["logged base", "base", "base", "logged base"]),
+        ([Big, Wet, Logged], ["logged big base", "base", "wet base", "logged wet big base"]),
+    ],
+)
+def test_guards_of_every_kind_see_the_call(layers: list[Layer], results: list[str]) -> None:
+    guards = Guards()
+    set_active(layers)
+    try:
+        assert [guards.test(area) for area in (11, 3, 7, 17)] == results
+    finally:
+        set_active([])
+
+
+def test_a_bound_method_guard_is_called_and_a_guards_error_reaches_the_caller() -> None:
+    guards, before = Guards(), LIMITS.calls
+    set_active([Logged, Big])
+    try:
+        guards.test(11)
+        assert LIMITS.calls == before + 1
+        assert guards.failing(6) == "big"
+        assert guards.failing(4) == "base"  # 1 // -1 is -1: the guard is false
+        with pytest.raises(ZeroDivisionError):
+            guards.failing(5)
+    finally:
+        set_active([])

@@ -450,7 +450,7 @@ class LayeredFunction:
         the stable function can take its code (no trampoline, no tuple or dict per call)."""
         keys = {kind: fresh_key(kind) for kind in ("guard", "partial", "skipped")}
         assert isinstance(linked, FunctionType)
-        merged = guarded_code(linked.__code__, keys["guard"], keys["skipped"])
+        merged = guarded_code(linked, guard, (keys["guard"], keys["skipped"]))
         if merged is not None:
             linked.__globals__[keys["guard"]] = guard
             linked.__globals__[keys["skipped"]] = skipped

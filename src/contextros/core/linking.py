@@ -312,6 +312,7 @@ _OPS = {
         "RETURN_VALUE",
         "POP_JUMP_FORWARD_IF_TRUE",
         "POP_JUMP_FORWARD_IF_NONE",
+        "JUMP_FORWARD",
         "BINARY_SUBSCR",
         "PUSH_NULL",
         "SWAP",
@@ -372,15 +373,70 @@ def _prefixed(
     )
 
 
-def guarded_code(code: CodeType, guard: str, skipped: str) -> CodeType | None:
-    """`code` (a partial's) opening with `if not <guard>(args): return <skipped>(args)`,
-    `guard` and `skipped` being global names: a guarded partial in one frame, not behind
-    a dispatcher of its own (None where `_prefixed` cannot write it)."""
+def _inlined_guard(
+    guard: object, code: CodeType, namespace: dict[str, Any], first_name: int
+) -> list[int] | None:
+    """The bytecode of `guard`'s body, to run in a frame of `code` (its parameters are the
+    first locals of both) with `guard`'s names from index `first_name` of the names and its
+    constants after `code`'s, leaving its result on the stack. None unless `guard` is a
+    plain function of `namespace` (`code`'s module) taking exactly `code`'s positional
+    parameters and no other local."""
+    if not isinstance(guard, FunctionType):
+        return None
+    own = guard.__code__
+    if (
+        guard.__globals__ is not namespace
+        or own.co_flags & _NOT_PLAIN
+        or own.co_argcount != code.co_argcount
+        or own.co_kwonlyargcount
+        or own.co_nlocals != own.co_argcount
+        or own.co_cellvars
+        or own.co_freevars
+        or getattr(own, "co_exceptiontable", b"")
+        or own.co_code[0] != _OPS["RESUME"]
+    ):
+        return None
+    body = list(own.co_code[2:])
+    end = len(body) // 2
+    for unit in range(end):
+        op, argument = body[2 * unit], body[2 * unit + 1]
+        if op == dis.opmap["EXTENDED_ARG"]:
+            return None
+        if op == _OPS["RETURN_VALUE"]:  # on to the test of the result
+            op, argument = _OPS["JUMP_FORWARD"], end - unit - 1
+        elif op == _OPS["LOAD_GLOBAL"]:
+            argument = (first_name + (argument >> 1)) << 1 | (argument & 1)
+        elif op in dis.hasname:
+            argument += first_name
+        elif op in dis.hasconst:
+            argument += len(code.co_consts)
+        if argument > 255:
+            return None
+        body[2 * unit], body[2 * unit + 1] = op, argument
+    return body
+
+
+def guarded_code(
+    function: FunctionType, guard: Callable[..., object], names: tuple[str, str]
+) -> CodeType | None:
+    """`function`'s code (a partial's) opening with `if not guard(args): return
+    skipped(args)`, `names` being the global names of the guard and of what is skipped to:
+    a guarded partial in one frame, not behind a dispatcher of its own. A plain guard of
+    the partial's module (such as a lambda) has its body run in that frame too: no call.
+    None where `_prefixed` cannot write it."""
+    code = function.__code__
     count, index = code.co_argcount, len(code.co_names)
     skip = _op("LOAD_GLOBAL", (index + 1) << 1 | 1) + _call(count) + _op("RETURN_VALUE")
-    prefix = _op("LOAD_GLOBAL", index << 1 | 1) + _call(count)
-    prefix += _op("POP_JUMP_FORWARD_IF_TRUE", len(skip) // 2) + skip
-    return _prefixed(code, (guard, skipped), prefix, count + 2)
+    test = _inlined_guard(guard, code, function.__globals__, index + 2)
+    if test is not None:
+        own = guard.__code__  # type: ignore[attr-defined]
+        prefix = test + _op("POP_JUMP_FORWARD_IF_TRUE", len(skip) // 2) + skip
+        inlined = _prefixed(code, (*names, *own.co_names), prefix, max(count + 2, own.co_stacksize))
+        if inlined is not None:
+            return inlined.replace(co_consts=(*code.co_consts, *own.co_consts))
+    test = _op("LOAD_GLOBAL", index << 1 | 1) + _call(count)
+    prefix = test + _op("POP_JUMP_FORWARD_IF_TRUE", len(skip) // 2) + skip
+    return _prefixed(code, names, prefix, count + 2)
 
 
 def inline_head_code(code: CodeType, find: str, receiver: bool) -> CodeType | None:
