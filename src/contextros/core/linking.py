@@ -392,7 +392,7 @@ def _inlined_guard(
         or own.co_nlocals != own.co_argcount
         or own.co_cellvars
         or own.co_freevars
-        or getattr(own, "co_exceptiontable", b"")
+        or own.co_exceptiontable  # type: ignore[attr-defined]
         or own.co_code[0] != _OPS["RESUME"]
     ):
         return None
