@@ -491,7 +491,8 @@ class LayeredFunction:
 
     def install_scoped(self, runtime: Any) -> None:
         """Make calls of `stable` read the caller's scope first (while scopes are alive);
-        a call that finds no scope alive at all puts the direct path back."""
+        a call that finds no scope alive at all puts the direct path back. With the C
+        dispatcher, the newest scope's head is the one it expects."""
         namespace = self.stable.__globals__
         if _FINDER is not None:
             namespace[self._find_key] = _FINDER(self, runtime.scope, runtime, self.global_head)
@@ -500,16 +501,16 @@ class LayeredFunction:
             code = self._scoped_exact_code if self._uniform else self._scoped_code
             self._install_dispatcher(code, guess, receiver=False)
             return
-        else:
-            namespace[self._head_key] = self.global_head
-            namespace[self._scope_key] = runtime.scope
-            namespace[self._runtime_key] = runtime
-            namespace[self._self_key] = self
+        namespace[self._head_key] = self.global_head
+        namespace[self._scope_key] = runtime.scope
+        namespace[self._runtime_key] = runtime
+        namespace[self._self_key] = self
         self.stable.__code__ = self._scoped_exact_code if self._uniform else self._scoped_code
 
     def install_receiver(self, runtime: Any) -> None:
         """Make calls of `stable` look up their receiver's own layers first (per-object
-        and class-wide activation), then the caller's scope."""
+        and class-wide activation), then the caller's scope. With the C dispatcher, the
+        head of the receiver whose layers changed last is the one it expects."""
         namespace = self.stable.__globals__
         receivers = runtime.receivers
         if _FINDER is not None:
@@ -533,13 +534,12 @@ class LayeredFunction:
                 receiver=True,
             )
             return
-        else:
-            namespace[self._head_key] = self.global_head
-            namespace[self._scope_key] = runtime.scope
-            namespace[self._objects_key] = receivers.objects
-            namespace[self._classes_key] = receivers.classes
-            namespace[self._runtime_key] = runtime
-            namespace[self._self_key] = self
+        namespace[self._head_key] = self.global_head
+        namespace[self._scope_key] = runtime.scope
+        namespace[self._objects_key] = receivers.objects
+        namespace[self._classes_key] = receivers.classes
+        namespace[self._runtime_key] = runtime
+        namespace[self._self_key] = self
         exact = self._receiver_exact_code if self._uniform else None
         self.stable.__code__ = (exact or self._receiver_code)[self.receiver_kind]
 
