@@ -42,12 +42,15 @@ endfunction()
 
 # 3 and 4: repair the imported targets of this directory (call again after more
 # find_package calls; it is also deferred to the end of the directory's configure).
+# CONTEXTROS_GENERATOR_PY_INCLUDES: what replaces the builder's include directories of the
+# generator_py targets; empty (C++ code never includes Python's headers) unless a project
+# builds Python bindings itself (cpp/ros/rclcpp/wheels_project_include.cmake).
 function(contextros_repair_wheel_targets)
   get_property(_targets DIRECTORY "${CMAKE_CURRENT_SOURCE_DIR}" PROPERTY IMPORTED_TARGETS)
   foreach(_target IN LISTS _targets)
     if(_target MATCHES "__rosidl_generator_py$")
-      # C++ code never includes Python's headers: drop the builder's paths.
-      set_property(TARGET ${_target} PROPERTY INTERFACE_INCLUDE_DIRECTORIES "")
+      set_property(TARGET ${_target}
+        PROPERTY INTERFACE_INCLUDE_DIRECTORIES "${CONTEXTROS_GENERATOR_PY_INCLUDES}")
     endif()
     get_property(_links TARGET ${_target} PROPERTY INTERFACE_LINK_LIBRARIES)
     if(_links)

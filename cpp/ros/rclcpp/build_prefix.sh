@@ -2,16 +2,20 @@
 # Builds rclcpp, rclcpp_lifecycle and rclcpp_components (29.3.0, with the packages they need
 # that have no wheel) from the unmodified sources of a tarball, against the ROS 2 wheels of
 # a venv, into <work dir>/prefix. Their sources are unpacked at build time, never kept in
-# this repository; the only adaptation is wheels_project_include.cmake. `make test-rclcpp`
-# runs it; the steps and times: docs/cpp.md ("rclcpp nodes").
+# this repository; the only adaptation is wheels_project_include.cmake (which reuses
+# cmake/ContextrosRosWheels.cmake). `make test-rclcpp` runs it; what it does and how long it
+# takes: docs/cpp.md ("Run here: rclcpp built from source against the wheels").
 # usage: build_prefix.sh <tarball> <venv> <work dir>
 # Needs cmake >= 3.21, ninja, g++ and Debian's libconsole-bridge-dev (class_loader).
 set -euo pipefail
 tarball=$(realpath "$1"); venv=$(realpath "$2"); work=$3
-fix=$(cd "$(dirname "$0")" && pwd)/wheels_project_include.cmake
+here=$(cd "$(dirname "$0")" && pwd)
+fix=$here/wheels_project_include.cmake
+repairs=$here/../../cmake/ContextrosRosWheels.cmake   # included by $fix
 mkdir -p "$work"; work=$(realpath "$work")
 prefix=$work/prefix
-if [[ -e $prefix/.complete && $prefix/.complete -nt $tarball && $prefix/.complete -nt $fix ]]; then
+if [[ -e $prefix/.complete && $prefix/.complete -nt $tarball && $prefix/.complete -nt $fix &&
+      $prefix/.complete -nt $repairs ]]; then
   exit 0
 fi
 if [[ ! -e /usr/include/console_bridge/console.h ]]; then

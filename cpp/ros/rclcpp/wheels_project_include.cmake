@@ -1,7 +1,7 @@
 # Injected into each of rclcpp's dependency projects (-DCMAKE_PROJECT_INCLUDE=<this file>,
-# build_prefix.sh) so that they build against the ROS 2 pip wheels unchanged. The same
-# defects as cmake/ContextrosRosWheels.cmake repairs for ContextROS itself (docs/cpp.md),
-# applied to every target of a foreign project, plus tracetools' `lttng-ust`.
+# build_prefix.sh) so that they build against the ROS 2 pip wheels unchanged: the defects
+# cmake/ContextrosRosWheels.cmake repairs for ContextROS itself (docs/cpp.md), its imported
+# targets' repair reused, its link settings applied to every target of a foreign project.
 # Input: CONTEXTROS_ROS_WHEELS (the venv), Python3_EXECUTABLE (its interpreter).
 cmake_minimum_required(VERSION 3.21)
 include_guard(GLOBAL)
@@ -57,22 +57,9 @@ string(APPEND CMAKE_CXX_STANDARD_LIBRARIES
 set(CMAKE_BUILD_RPATH "${_dirs}")
 set(CMAKE_INSTALL_RPATH "${_dirs}")
 
-# The imported targets, once the project has found them all: the generator_py targets name
-# the wheel builder's Python (these projects build Python bindings too: the real one), and
-# link interfaces name libraries of the builder's machine the wheels bundle themselves.
-set(_contextros_python_includes "${_python_includes}" CACHE INTERNAL "")
-function(_contextros_repair_imported_targets)
-  get_property(_targets DIRECTORY "${CMAKE_SOURCE_DIR}" PROPERTY IMPORTED_TARGETS)
-  foreach(_target IN LISTS _targets)
-    if(_target MATCHES "__rosidl_generator_py$")
-      set_property(TARGET ${_target}
-        PROPERTY INTERFACE_INCLUDE_DIRECTORIES "${_contextros_python_includes}")
-    endif()
-    get_property(_links TARGET ${_target} PROPERTY INTERFACE_LINK_LIBRARIES)
-    if(_links)
-      list(FILTER _links EXCLUDE REGEX "(^|/)libtinyxml2\\.so|tinyxml2::|OpenSSL::|^lttng-ust$")
-      set_property(TARGET ${_target} PROPERTY INTERFACE_LINK_LIBRARIES "${_links}")
-    endif()
-  endforeach()
-endfunction()
-cmake_language(DEFER DIRECTORY "${CMAKE_SOURCE_DIR}" CALL _contextros_repair_imported_targets)
+# The imported targets, once the project has found them all, repaired as ContextROS's own
+# (these projects build Python bindings too: the generator_py targets get the real Python's
+# include directories).
+set(CONTEXTROS_GENERATOR_PY_INCLUDES "${_python_includes}")
+include("${CMAKE_CURRENT_LIST_DIR}/../../cmake/ContextrosRosWheels.cmake")
+cmake_language(DEFER DIRECTORY "${CMAKE_SOURCE_DIR}" CALL contextros_repair_wheel_targets)
