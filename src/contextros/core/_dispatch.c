@@ -317,11 +317,13 @@ static int
 finder_init(Finder *self, PyObject *args, PyObject *kwargs)
 {
     static char *names[] = {"function", "scope", "runtime", "head", "objects", "classes",
-                            "by_class", NULL};
+                            "by_class", "expected", NULL};
     PyObject *function, *scope, *runtime, *head, *objects = Py_None, *classes = Py_None;
+    PyObject *expected = NULL;
     int by_class = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOp:Finder", names, &function, &scope,
-                                     &runtime, &head, &objects, &classes, &by_class)) {
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOpO:Finder", names, &function,
+                                     &scope, &runtime, &head, &objects, &classes, &by_class,
+                                     &expected)) {
         return -1;
     }
     if (!PyContextVar_CheckExact(scope)) {
@@ -338,6 +340,7 @@ finder_init(Finder *self, PyObject *args, PyObject *kwargs)
     Py_XSETREF(self->head, Py_NewRef(head));
     Py_XSETREF(self->objects, Py_NewRef(objects));
     Py_XSETREF(self->classes, Py_NewRef(classes));
+    Py_XSETREF(self->expected, expected == Py_None ? NULL : Py_XNewRef(expected));
     self->by_class = by_class;
     self->vectorcall = finder_vectorcall;
     Py_CLEAR(self->cached_heads);
@@ -355,8 +358,9 @@ static PyMemberDef finder_members[] = {
     {"function", T_OBJECT_EX, offsetof(Finder, function), READONLY, "the layered function"},
     {"objects", T_OBJECT_EX, offsetof(Finder, objects), READONLY,
      "the receivers by id(object) (None: the scoped path)"},
-    {"expected", T_OBJECT, offsetof(Finder, expected), 0,
-     "the head FIND[receiver] gives as None (the dispatcher runs its code itself)"},
+    {"expected", T_OBJECT, offsetof(Finder, expected), READONLY,
+     "the head FIND[receiver] gives as None (the dispatcher whose code is that head's "
+     "reads this finder, under a global name of its own)"},
     {NULL},
 };
 
@@ -364,7 +368,7 @@ static PyTypeObject FinderType = {
     PyVarObject_HEAD_INIT(NULL, 0)
     .tp_name = "contextros.core._dispatch.Finder",
     .tp_doc = PyDoc_STR("Finder(function, scope, runtime, head, objects=None, classes=None, "
-                        "by_class=False): called as FIND[receiver], FIND(receiver) or FIND(), returns the "
+                        "by_class=False, expected=None): called as FIND[receiver], FIND(receiver) or FIND(), returns the "
                         "head a layered call runs"),
     .tp_basicsize = sizeof(Finder),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL,
@@ -404,7 +408,7 @@ PyInit__dispatch(void)
         return NULL;
     }
     /* What composition.py expects (it falls back to pure Python on a stale build). */
-    if (PyModule_AddIntConstant(module, "ABI", 1) < 0 ||
+    if (PyModule_AddIntConstant(module, "ABI", 2) < 0 ||
         PyModule_AddObjectRef(module, "Finder", (PyObject *)&FinderType) < 0) {
         Py_DECREF(module);
         return NULL;

@@ -40,7 +40,7 @@ from contextros.errors import LayerDefinitionError, NoImplementationError, Proce
 F = TypeVar("F", bound=Callable[..., Any])
 
 
-_ABI = 1  # the version of `_dispatch.c` this module drives
+_ABI = 2  # the version of `_dispatch.c` this module drives
 
 
 def _finder_type() -> Any:
@@ -136,10 +136,11 @@ class LayeredFunction:
             [f"return {self._head_key}({arguments})"], self._freevars, self.qualname, parameters
         )
         self._find_key = fresh_key("find")
-        # The C dispatchers with a head's code inlined, by that head and receiver or not.
-        self._inlined: weakref.WeakKeyDictionary[FunctionType, dict[bool, CodeType | None]] = (
-            weakref.WeakKeyDictionary()
-        )
+        # The C dispatchers with a head's code inlined, by that head and receiver or not,
+        # each with the global name of its own Finder (which expects that head).
+        self._inlined: weakref.WeakKeyDictionary[
+            FunctionType, dict[bool, tuple[CodeType, str] | None]
+        ] = weakref.WeakKeyDictionary()
         self._objects_key = fresh_key("objects")
         self._classes_key = fresh_key("classes")
         # "" (no receiver has layers of its own), "object" or "class" (a classmethod).
@@ -495,11 +496,11 @@ class LayeredFunction:
         dispatcher, the newest scope's head is the one it expects."""
         namespace = self.stable.__globals__
         if _FINDER is not None:
-            namespace[self._find_key] = _FINDER(self, runtime.scope, runtime, self.global_head)
             scope = runtime.newest_scope()
             guess = self.head_for(scope.configuration()) if scope is not None else None
             code = self._scoped_exact_code if self._uniform else self._scoped_code
-            self._install_dispatcher(code, guess, receiver=False)
+            finder = (self, runtime.scope, runtime, self.global_head)
+            self._install_dispatcher(code, guess, finder, receiver=False)
             return
         namespace[self._head_key] = self.global_head
         namespace[self._scope_key] = runtime.scope
@@ -514,7 +515,10 @@ class LayeredFunction:
         namespace = self.stable.__globals__
         receivers = runtime.receivers
         if _FINDER is not None:
-            namespace[self._find_key] = _FINDER(
+            latest = receivers.latest()
+            found = receivers.of(latest) if latest is not None else None
+            guess = self.head_for(found.configuration()) if found is not None else None
+            finder = (
                 self,
                 runtime.scope,
                 runtime,
@@ -523,14 +527,12 @@ class LayeredFunction:
                 receivers.classes,
                 self.receiver_kind == "class",
             )
-            latest = receivers.latest()
-            found = receivers.of(latest) if latest is not None else None
-            guess = self.head_for(found.configuration()) if found is not None else None
             self._install_dispatcher(
                 self._receiver_exact_code[self.receiver_kind]
                 if self._uniform and self._receiver_exact_code
                 else self._receiver_code[self.receiver_kind],
                 guess,
+                finder,
                 receiver=True,
             )
             return
@@ -544,12 +546,23 @@ class LayeredFunction:
         self.stable.__code__ = (exact or self._receiver_code)[self.receiver_kind]
 
     def _install_dispatcher(
-        self, code: CodeType, guess: Callable[..., Any] | None, *, receiver: bool
+        self,
+        code: CodeType,
+        guess: Callable[..., Any] | None,
+        finder: tuple[Any, ...],
+        *,
+        receiver: bool,
     ) -> None:
-        """Install a C dispatcher (`code`), or where it can, the same dispatcher opening the
-        code of `guess`, the head it expects (of the newest scope, or of the receiver whose
-        layers changed last): a call that finds that head runs it in this frame, one that
-        finds another calls it (one frame more)."""
+        """Install a C dispatcher (`code`, with a Finder made of `finder`), or where it can,
+        the same dispatcher opening the code of `guess`, the head it expects (of the newest
+        scope, or of the receiver whose layers changed last): a call that finds that head
+        runs it in this frame, one that finds another calls it (one frame more).
+
+        Each such code reads a Finder of its own, which expects its head: a call still
+        running an older dispatcher while this one is installed runs that one's head only
+        if it is the head it finds."""
+        namespace = self.stable.__globals__
+        namespace[self._find_key] = _FINDER(*finder)
         inlined = None
         if (
             self._uniform
@@ -559,14 +572,15 @@ class LayeredFunction:
         ):
             codes = self._inlined.setdefault(guess, {})
             if receiver not in codes:
-                made = inline_head_code(guess.__code__, self._find_key, receiver)
+                key = fresh_key("find")
+                made = inline_head_code(guess.__code__, key, receiver)
                 if made is not None:
                     remember_like(made, guess)
-                codes[receiver] = made
+                codes[receiver] = None if made is None else (made, key)
             inlined = codes[receiver]
         if inlined is not None:
-            self.stable.__globals__[self._find_key].expected = guess
-            self.stable.__code__ = inlined
+            namespace[inlined[1]] = _FINDER(*finder, expected=guess)
+            self.stable.__code__ = inlined[0]
         else:
             self.stable.__code__ = code
 
