@@ -8,6 +8,7 @@ read the active layers too.
 from __future__ import annotations
 
 import asyncio
+import linecache
 import traceback
 
 import pytest
@@ -348,3 +349,17 @@ def test_a_bound_method_guard_is_called_and_a_guards_error_reaches_the_caller() 
             guards.failing(5)
     finally:
         set_active([])
+
+
+def test_an_error_in_an_inlined_guard_points_at_the_guard() -> None:
+    guards = Guards()
+    set_active([Big])
+    try:
+        guards.failing(5)
+    except ZeroDivisionError as error:  # its frames are not kept
+        frames = traceback.extract_tb(error.__traceback__)
+    finally:
+        set_active([])
+    assert frames[-1].line == ("@failing.partial(Big, when=lambda self, area: 1 // (area - 5) > 0)")
+    source = linecache.getline(frames[-1].filename, frames[-1].lineno or 0)
+    assert source[frames[-1].colno or 0 :].startswith("1 // (area - 5)")

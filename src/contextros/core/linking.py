@@ -341,11 +341,46 @@ def _call(count: int) -> list[int]:
     return loads + _op("PRECALL", count) + _op("CALL", count)
 
 
+def _varint(value: int, signed: bool = False) -> bytes:
+    """A number of CPython 3.11's location table."""
+    if signed:
+        value = (-value << 1) | 1 if value < 0 else value << 1
+    out = bytearray()
+    while value >= 64:
+        out.append(0x40 | (value & 63))
+        value >>= 6
+    out.append(value)
+    return bytes(out)
+
+
+Position = tuple[int | None, int | None, int | None, int | None]
+
+
+def _locations(positions: list[Position], line: int) -> tuple[bytes, int]:
+    """Location-table entries of one code unit each for `positions`, from the table's
+    current line `line`; with the line they leave it at."""
+    table = bytearray()
+    for start, end, column, end_column in positions:
+        if start is None or end is None or column is None or end_column is None:
+            table.append(_NO_LOCATION)
+            continue
+        table.append(0x80 | 14 << 3)  # the long form, one code unit
+        table += _varint(start - line, signed=True) + _varint(end - start)
+        table += _varint(column + 1) + _varint(end_column + 1)
+        line = start
+    return bytes(table), line
+
+
 def _prefixed(
-    code: CodeType, names: tuple[str, ...], prefix: list[int], stack: int
+    code: CodeType,
+    names: tuple[str, ...],
+    prefix: list[int],
+    stack: int,
+    positions: tuple[Position, ...] = (),
 ) -> CodeType | None:
     """`code` with `prefix` (CPython 3.11 bytecode, reading the globals `names`) run first,
-    after RESUME. Only for plain functions (positional-or-keyword parameters, no cells, no
+    after RESUME; its first code units at `positions` (source positions), the others with
+    none. Only for plain functions (positional-or-keyword parameters, no cells, no
     exception handlers, not a generator or coroutine) on 3.11; None otherwise."""
     table = code.co_linetable
     if (
@@ -364,7 +399,14 @@ def _prefixed(
     ):
         return None
     first = 1 + next((i for i, byte in enumerate(table[1:]) if byte & 0x80), len(table) - 1)
-    locations = bytes([_NO_LOCATION]) * (len(prefix) // 2)
+    locations = bytes([_NO_LOCATION]) * (len(prefix) // 2 - len(positions))
+    if positions:
+        line = next(code.co_positions())[0]
+        if line is None:
+            return None
+        placed, now = _locations(list(positions), line)
+        back = bytes([0x80 | 13 << 3]) + _varint(line - now, signed=True)  # no column
+        locations = placed + back + locations[1:]
     return code.replace(
         co_code=code.co_code[:2] + bytes(prefix) + code.co_code[2:],
         co_names=(*code.co_names, *names),
@@ -431,7 +473,11 @@ def guarded_code(
     if test is not None:
         own = guard.__code__  # type: ignore[attr-defined]
         prefix = test + _op("POP_JUMP_FORWARD_IF_TRUE", len(skip) // 2) + skip
-        inlined = _prefixed(code, (*names, *own.co_names), prefix, max(count + 2, own.co_stacksize))
+        # The guard's own source positions: an error in it points at the guard.
+        same_file = own.co_filename == code.co_filename
+        positions = tuple(own.co_positions())[1:] if same_file else ()  # type: ignore[attr-defined]
+        stack = max(count + 2, own.co_stacksize)
+        inlined = _prefixed(code, (*names, *own.co_names), prefix, stack, positions)
         if inlined is not None:
             return inlined.replace(co_consts=(*code.co_consts, *own.co_consts))
     test = _op("LOAD_GLOBAL", index << 1 | 1) + _call(count)
