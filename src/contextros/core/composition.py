@@ -50,7 +50,7 @@ def _finder_type() -> Any:
     if os.environ.get("CONTEXTROS_PURE_PYTHON", "") not in ("", "0"):
         return None
     try:
-        from contextros.core import _dispatch
+        import contextros.core._dispatch as _dispatch
     except ImportError:
         return None
     if getattr(_dispatch, "ABI", None) != _ABI:
