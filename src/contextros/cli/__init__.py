@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import sys
 from collections.abc import Sequence
 
@@ -87,13 +88,17 @@ def main(argv: Sequence[str] | None = None) -> int:
             status = done.code if isinstance(done.code, int) else int(done.code is not None)
         sys.stdout.flush()  # here, where a reader gone away is seen, not at exit
         return status
-    except exits.Stopped as stop:
+    except BrokenPipeError:
+        return exits.output_closed()
+    except BaseException as error:
+        stop = exits.stopped_under(error)
+        if stop is None and not exits.ros_context_shut_by_signal:
+            raise
         until_stopped = getattr(args, "runs_until_stopped", False)
         if callable(until_stopped):  # it depends on the options
             until_stopped = until_stopped(args)
-        return 0 if until_stopped else 128 + stop.signum
-    except BrokenPipeError:
-        return exits.output_closed()
+        signum = stop.signum if stop is not None else exits.received or signal.SIGINT
+        return 0 if until_stopped else 128 + signum
     finally:
         exits.after_command(None if argv is None else previous)
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import select
 import signal
 import sys
 from types import FrameType
@@ -31,6 +32,9 @@ class Stopped(KeyboardInterrupt):
 
 # The last stop signal received, for the commands that report an interruption themselves.
 received: int | None = None
+# rclpy's own handler (it runs first, in C) shut the command's ROS context down under it:
+# a signal, even if the error it caused left this module's handler no turn to run.
+ros_context_shut_by_signal = False
 
 
 Handlers = dict[int, Any]
@@ -57,6 +61,21 @@ def _stop(signum: int, frame: FrameType | None) -> None:
     raise Stopped(signum)
 
 
+def stopped_under(error: BaseException) -> Stopped | None:
+    """The stop signal behind `error`, if any. The signal's exception may surface as
+    another: Python wraps one raised in a class body's `__set_name__` in a RuntimeError,
+    and a teardown after rclpy's own handler shut its context down raises RCLError (with
+    the interruption as its context)."""
+    seen: set[int] = set()
+    cause: BaseException | None = error
+    while cause is not None and id(cause) not in seen:
+        if isinstance(cause, Stopped):
+            return cause
+        seen.add(id(cause))
+        cause = cause.__cause__ or cause.__context__
+    return None
+
+
 def interrupted_status() -> int:
     """The status of a command interrupted by the last stop signal (Ctrl-C if none)."""
     return 128 + (received or signal.SIGINT)
@@ -70,3 +89,14 @@ def output_closed() -> int:
         os.dup2(devnull, sys.stdout.fileno())
         os.close(devnull)
     return CLOSED_OUTPUT
+
+
+def output_gone() -> bool:
+    """Whether the standard output is a pipe whose reader went away: a command that prints
+    only now and then (`contextros watch | head -3`) ends then, not at its next line."""
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), 0)  # POLLERR and POLLHUP are always reported
+        return any(events & select.POLLERR for _, events in poller.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False

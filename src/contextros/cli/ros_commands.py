@@ -17,6 +17,7 @@ from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from contextros.cli import exits
 from contextros.cli.answered_in_child import INTERRUPTED, answered_in_child
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
@@ -69,6 +70,8 @@ def ros_session(args: argparse.Namespace) -> Iterator[None]:
     try:
         yield
     finally:
+        if not rclpy.ok():  # not shut down by us yet: by rclpy's signal handler
+            exits.ros_context_shut_by_signal = True
         rclpy.try_shutdown()
 
 
@@ -603,6 +606,7 @@ def _watch(args: argparse.Namespace) -> int:
     from contextros_interfaces.msg import LayerState, ParticipantStatus
     from rclpy.node import Node
 
+    from contextros.cli.exits import output_gone
     from contextros.cli.watching import SwitchWatch
     from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, spin_nodes
     from contextros.ros.messages import stamp_to_seconds
@@ -633,6 +637,8 @@ def _watch(args: argparse.Namespace) -> int:
     def on_tick() -> None:
         for record in watch.tick(time.time()):
             _print_watch(args.json, record)
+        if output_gone():
+            raise BrokenPipeError("the standard output's reader went away")
 
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
