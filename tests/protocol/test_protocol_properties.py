@@ -100,6 +100,7 @@ def test_every_synchronous_command_gets_one_honest_answer_in_time(script: list[t
         manager.receive_status(ParticipantReport(node, "1", LAYERS), now)
     manager.tick(now)
     asked: dict[int, tuple[float, bool, set[str]]] = {}  # id -> (deadline, synchronous, live)
+    # live: the nodes live when it was asked, and those that rejoined while it was pending
     answered: dict[int, object] = {}
     last_epoch = manager.state.epoch
 
@@ -141,6 +142,9 @@ def test_every_synchronous_command_gets_one_honest_answer_in_time(script: list[t
                 if fresh:
                     applied[node] = manager.state.epoch
                 report = ParticipantReport(node, "1", LAYERS, applied_epoch=applied[node])
+                if node not in manager.live_nodes:  # it rejoins: a pending command counts it
+                    for pending in set(asked) - set(answered):
+                        asked[pending][2].add(node)
                 collect(manager.receive_status(report, now))
         elif event[0] == "wait":
             end = now + event[1]
