@@ -266,14 +266,16 @@ import contextros.ros.recorder, rclpy.node, mcap.writer
 directory, count, topic = sys.argv[1], int(sys.argv[2]), sys.argv[3]
 pids = []
 for index in range(count):
+    # (opened before the fork: the log is there once its pid is printed)
+    log = os.open(f"{directory}/{index}.log", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
     pid = os.fork()
     if pid == 0:
-        log = os.open(f"{directory}/{index}.log", os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
         os.dup2(log, 1)
         os.dup2(log, 2)
         # (--duration: the test kills it long before; a safety net if the test dies)
         argv = ["record", f"{directory}/{index}.mcap", "--topic", topic, "--duration", "60"]
         os._exit(main(argv))
+    os.close(log)
     pids.append(pid)
 print(" ".join(map(str, pids)), flush=True)
 for pid in pids:
