@@ -114,15 +114,17 @@ observe: ros $(VENV)/.stamp-dev $(BROWSER)
 # Four workers on two cores: most tests wait on real processes and the network, not the CPU
 # (pytest used 1.2 cores with two workers). A worker with nothing left takes tests queued
 # for a busy one (worksteal): 120-128 s against 145 s for the default split, one after
-# the other on one machine.
+# the other on one machine. The rclcpp tests are `make test-rclcpp`'s (not collected here,
+# so that nothing is reported skipped).
+RCLCPP_TESTS := --ignore=tests/ros/test_rclcpp.py
 test: ros cpp $(VENV)/.stamp-dev $(BROWSER)
 	$(BYTECODE) src tests examples >/dev/null
-	$(PY) -m pytest -n 4 --dist worksteal -q -m "not slow"
+	$(PY) -m pytest -n 4 --dist worksteal -q -m "not slow" $(RCLCPP_TESTS)
 
 # What takes minutes: a colcon workspace built from scratch (CI runs it after `make test`).
 test-slow: ros cpp $(VENV)/.stamp-dev
 	$(BYTECODE) src tests examples >/dev/null
-	$(PY) -m pytest -q -m slow
+	$(PY) -m pytest -q -m slow $(RCLCPP_TESTS)
 
 # rclcpp, rclcpp_lifecycle and rclcpp_components have no wheel: built from their vendored,
 # unmodified sources (rclcpp 29.3.0; RCLCPP_SOURCES) into build/rclcpp/prefix, against this
