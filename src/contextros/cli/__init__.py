@@ -87,6 +87,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit as done:  # argparse's --help, --version and usage errors
             status = done.code if isinstance(done.code, int) else int(done.code is not None)
         sys.stdout.flush()  # here, where a reader gone away is seen, not at exit
+        if exits.received is not None:  # whatever the interruption made of its result
+            return _stopped_status(args, exits.received)
         return status
     except BrokenPipeError:
         return exits.output_closed()
@@ -94,13 +96,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         stop = exits.stopped_under(error)
         if stop is None and not exits.ros_context_shut_by_signal:
             raise
-        until_stopped = getattr(args, "runs_until_stopped", False)
-        if callable(until_stopped):  # it depends on the options
-            until_stopped = until_stopped(args)
         signum = stop.signum if stop is not None else exits.received or signal.SIGINT
-        return 0 if until_stopped else 128 + signum
+        return _stopped_status(args, signum)
     finally:
         exits.after_command(None if argv is None else previous)
+
+
+def _stopped_status(args: argparse.Namespace, signum: int) -> int:
+    """0 for a command that runs until stopped, else the shell's status for the signal."""
+    until_stopped = getattr(args, "runs_until_stopped", False)
+    if callable(until_stopped):  # it depends on the options
+        until_stopped = until_stopped(args)
+    return 0 if until_stopped else 128 + signum
 
 
 def _run(args: argparse.Namespace, argv: Sequence[str]) -> int:

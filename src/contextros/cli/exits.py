@@ -42,6 +42,8 @@ Handlers = dict[int, Any]
 
 def stop_on_signals() -> Handlers:
     """Install the handlers; the ones they replace."""
+    global received, ros_context_shut_by_signal
+    received, ros_context_shut_by_signal = None, False
     return {signum: signal.signal(signum, _stop) for signum in (signal.SIGINT, signal.SIGTERM)}
 
 
