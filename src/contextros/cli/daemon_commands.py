@@ -9,6 +9,7 @@ import os
 import sys
 from typing import TYPE_CHECKING, Any
 
+from contextros.cli.option_types import Seconds
 from contextros.cli.ros_arguments import namespace_problem
 
 if TYPE_CHECKING:
@@ -31,7 +32,7 @@ def register(commands: Any) -> None:
     )
     start.add_argument(
         "--idle-timeout",
-        type=float,
+        type=Seconds(),
         default=900.0,
         metavar="S",
         help="stop after S seconds without a command (default 900; 0: never)",
@@ -63,9 +64,6 @@ def run_start(args: argparse.Namespace) -> int:
 
     if args.warm_namespace is not None and (problem := namespace_problem(args.warm_namespace)):
         print(f"contextros daemon: {problem}", file=sys.stderr)
-        return USAGE
-    if args.idle_timeout < 0:
-        print("contextros daemon: --idle-timeout must be 0 or more", file=sys.stderr)
         return USAGE
     if (place := _place()) is None:
         return 1

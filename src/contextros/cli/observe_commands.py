@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from contextros.cli.option_types import PORT, Seconds
 from contextros.errors import LayerError
 
 USAGE = 2
@@ -42,7 +43,7 @@ def register_offline(commands: Any) -> None:
     )
     replay.add_argument(
         "--tolerance",
-        type=float,
+        type=Seconds(),
         default=TIME_TOLERANCE,
         metavar="S",
         help="a replayed state further than this from the recorded one is a difference "
@@ -89,7 +90,9 @@ def register_ros(commands: Any, add_namespace_option: Any) -> None:
     record.add_argument(
         "--topic", nargs="+", default=[], metavar="TOPIC", help="also record these topics"
     )
-    record.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    record.add_argument(
+        "--duration", type=Seconds(positive=True), metavar="S", help="stop after S seconds"
+    )
     add_namespace_option(record)
     record.set_defaults(run=run_record)
 
@@ -112,7 +115,7 @@ def register_ros(commands: Any, add_namespace_option: Any) -> None:
         "docs/observability.md before exposing it)",
     )
     dashboard.add_argument(
-        "--port", type=int, default=8080, help="the port (default 8080; 0: any free one)"
+        "--port", type=PORT, default=8080, help="the port (default 8080; 0: any free one)"
     )
     dashboard.set_defaults(run=run_dashboard)
 
@@ -261,9 +264,6 @@ def run_replay(args: argparse.Namespace) -> int:
 
     if problem := namespace_problem(args.namespace):
         print(f"contextros rules replay: {problem}", file=sys.stderr)
-        return USAGE
-    if not args.tolerance >= 0:
-        print("contextros rules replay: --tolerance must be 0 or more seconds", file=sys.stderr)
         return USAGE
     if args.plot:
         try:

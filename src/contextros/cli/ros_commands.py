@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from contextros.cli import exits
 from contextros.cli.answered_in_child import INTERRUPTED, answered_in_child
+from contextros.cli.option_types import ACTIVATION_TIMEOUT, MAX_TIMEOUT, Count, Seconds
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
 
@@ -93,28 +94,28 @@ def register(commands: Any) -> None:
     )
     manager.add_argument(
         "--liveness-timeout",
-        type=float,
+        type=Seconds(positive=True),
         default=3.0,
         metavar="S",
         help="drop a participant silent for this long (default 3 s: 12 heartbeats)",
     )
     manager.add_argument(
         "--default-timeout",
-        type=float,
+        type=Seconds(positive=True, most=MAX_TIMEOUT),
         default=5.0,
         metavar="S",
         help="timeout of synchronous activations that give none (default 5 s)",
     )
     manager.add_argument(
         "--recovery-window",
-        type=float,
+        type=Seconds(),
         default=1.0,
         metavar="S",
         help="listen to participants this long before the first state (default 1 s)",
     )
     manager.add_argument(
         "--unknown-layer-grace",
-        type=float,
+        type=Seconds(),
         default=2.0,
         metavar="S",
         help="after recovery, a command naming a layer nobody implements yet waits this long "
@@ -162,9 +163,14 @@ def register(commands: Any) -> None:
 
     watch = commands.add_parser("watch", help="stream layer switches and their latency")
     watch.add_argument(
-        "--count", type=int, metavar="N", help="stop after N switches (and their acknowledgements)"
+        "--count",
+        type=Count(least=1),
+        metavar="N",
+        help="stop after N switches (and their acknowledgements)",
     )
-    watch.add_argument("--duration", type=float, metavar="S", help="stop after S seconds")
+    watch.add_argument(
+        "--duration", type=Seconds(positive=True), metavar="S", help="stop after S seconds"
+    )
     watch.add_argument("--json", action="store_true", help="one JSON object per line")
     add_namespace_option(watch)
     watch.set_defaults(run=run_watch)
@@ -173,7 +179,7 @@ def register(commands: Any) -> None:
 def _add_connection_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--wait-manager",
-        type=float,
+        type=Seconds(),
         default=5.0,
         metavar="S",
         help="how long to look for the manager (default 5 s)",
@@ -194,7 +200,7 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--timeout",
-        type=float,
+        type=ACTIVATION_TIMEOUT,
         default=0.0,
         metavar="S",
         help="synchronous timeout (default: the manager's)",
@@ -213,7 +219,7 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--expect-count",
-        type=int,
+        type=Count(),
         default=0,
         metavar="N",
         help="with --sync: fail unless at least N nodes applied it",
