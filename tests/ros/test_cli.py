@@ -153,11 +153,34 @@ def _children(pid: int) -> list[str]:
 
 
 def test_manager_refuses_a_damaged_state_file(tmp_path: Path) -> None:
-    damaged = tmp_path / "state.json"
-    damaged.write_text("{ not json", encoding="utf-8")
-    refused = contextros("manager", "--state-file", str(damaged))
-    assert refused.returncode == 1
-    assert "not a ContextROS state file" in refused.stderr and str(damaged) in refused.stderr
+    """Each damage one message naming the file and what is wrong (tests/protocol/manager/
+    test_memory.py tries many more on the parser); run at once, in parallel processes."""
+    damages = {
+        "{ not json": "not JSON at line 1 column 3",
+        bytes([0x7B, 0xFF, 0x7D]): "not UTF-8 at byte 1",
+        "[]": "not a JSON object but a list",
+        '{"epoch": 3}': "missing field 'active'",
+        None: "it is a directory",
+    }
+    running = []
+    for index, (content, message) in enumerate(damages.items()):
+        damaged = tmp_path / f"state{index}.json"
+        if content is None:
+            damaged.mkdir()
+        else:
+            damaged.write_bytes(content.encode() if isinstance(content, str) else content)
+        command = [sys.executable, "-m", "contextros", "manager", "--state-file", str(damaged)]
+        process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        running.append((damaged, message, process))
+    for damaged, message, process in running:
+        try:
+            _, err = process.communicate(timeout=60)
+        finally:
+            process.kill()
+        stderr = err.decode()
+        assert process.returncode == 1, stderr
+        assert f"contextros manager: {damaged}: not a ContextROS state file: {message}" in stderr
+        assert "Traceback" not in stderr, stderr
 
 
 def test_sync_fails_unless_the_expected_nodes_applied_it(

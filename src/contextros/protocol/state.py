@@ -7,7 +7,10 @@ on the right configuration by applying the newest one, and refuses anything olde
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
 
 from contextros.protocol.errors import StateFileError
 
@@ -49,30 +52,36 @@ class LayerState:
     @classmethod
     def from_json(cls, text: str, source: str = "<state>") -> LayerState:
         """Parse a saved state; a damaged file is an error, never a silent epoch 0."""
-        try:
-            data = json.loads(text)
-            epoch = data["epoch"]
-            active = data["active"]
-            if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
-                raise ValueError(f"epoch must be a non-negative integer, got {epoch!r}")
-            if epoch > MAX_EPOCH:
-                raise ValueError(f"epoch {epoch} is beyond any epoch an honest manager issues")
-            if not isinstance(active, list) or not all(
-                isinstance(n, str) and n.isidentifier() for n in active
-            ):
-                raise ValueError("active must be a list of layer names")
-            return cls(
-                epoch=epoch,
-                active=tuple(active),
-                requester=str(data.get("requester", "")),
-                reason=str(data.get("reason", "")),
-                stamp=float(data.get("stamp", 0.0)),
+        return cls._from_fields(_json_object(text, source), source)
+
+    @classmethod
+    def _from_fields(cls, data: dict[str, Any], source: str) -> LayerState:
+        epoch = _field(data, "epoch", source)
+        active = _field(data, "active", source)
+        if not isinstance(epoch, int) or isinstance(epoch, bool) or epoch < 0:
+            raise _damaged(
+                source, f"field 'epoch' must be a non-negative integer, not {_shown(epoch)}"
             )
-        except (ValueError, KeyError, TypeError) as error:
-            raise StateFileError(
-                f"{source}: not a ContextROS state file ({error}); "
-                "fix or delete it to start from the participants' state"
-            ) from error
+        if epoch > MAX_EPOCH:
+            raise _damaged(source, f"epoch {epoch} is beyond any epoch an honest manager issues")
+        if not isinstance(active, list) or not all(
+            isinstance(n, str) and n.isidentifier() for n in active
+        ):
+            raise _damaged(
+                source, f"field 'active' must be a list of layer names, not {_shown(active)}"
+            )
+        texts = {name: data.get(name, "") for name in ("requester", "reason")}
+        for name, value in texts.items():
+            if not isinstance(value, str):
+                raise _damaged(source, f"field {name!r} must be a string, not {_shown(value)}")
+        stamp = data.get("stamp", 0.0)
+        if (
+            not isinstance(stamp, int | float)
+            or isinstance(stamp, bool)
+            or not math.isfinite(stamp)
+        ):
+            raise _damaged(source, f"field 'stamp' must be a number, not {_shown(stamp)}")
+        return cls(epoch=epoch, active=tuple(active), stamp=float(stamp), **texts)
 
 
 INITIAL_STATE = LayerState(epoch=0, active=(), requester="", reason="initial")
@@ -110,29 +119,94 @@ class ManagerMemory:
     @classmethod
     def from_json(cls, text: str, source: str = "<state>") -> ManagerMemory:
         """Parse a state file (one written before `proposed_epoch` and `participants`
-        existed reads as none of either); a damaged file is an error."""
-        state = LayerState.from_json(text, source)
+        existed reads as none of either); a damaged file is an error naming what is wrong."""
+        data = _json_object(text, source)
+        state = LayerState._from_fields(data, source)
+        proposed = data.get("proposed_epoch", 0)
+        if not isinstance(proposed, int) or isinstance(proposed, bool):
+            raise _damaged(
+                source, f"field 'proposed_epoch' must be an integer, not {_shown(proposed)}"
+            )
+        if not 0 <= proposed <= MAX_EPOCH:
+            raise _damaged(source, f"field 'proposed_epoch' {proposed} is out of range")
+        entries = data.get("participants", [])
+        if not isinstance(entries, list):
+            raise _damaged(source, f"field 'participants' must be a list, not {_shown(entries)}")
+        return cls(state, proposed, tuple(_participant(e, source) for e in entries))
+
+    @classmethod
+    def read(cls, path: Path) -> ManagerMemory | None:
+        """The memory in the state file `path`, None if there is none; StateFileError naming
+        the file and what is wrong with it if it cannot be read or is damaged."""
+        if not path.exists():
+            return None
+        if path.is_dir():
+            raise _damaged(str(path), "it is a directory")
+        if not path.is_file():
+            raise _damaged(str(path), "it is not a regular file")
         try:
-            data = json.loads(text)
-            proposed = data.get("proposed_epoch", 0)
-            if not isinstance(proposed, int) or isinstance(proposed, bool):
-                raise ValueError(f"proposed_epoch must be an integer, got {proposed!r}")
-            if not 0 <= proposed <= MAX_EPOCH:
-                raise ValueError(f"proposed_epoch {proposed} is out of range")
-            participants = []
-            for entry in data.get("participants", []):
-                node, incarnation = entry["node"], entry["incarnation"]
-                hosted = entry.get("hosted", [])
-                if not (isinstance(node, str) and node.startswith("/")):
-                    raise ValueError(f"participant node must be a node name, got {node!r}")
-                if not isinstance(incarnation, str) or not isinstance(hosted, list):
-                    raise ValueError(f"participant {node}: bad incarnation or hosted nodes")
-                if not all(isinstance(h, str) for h in hosted):
-                    raise ValueError(f"participant {node}: hosted nodes must be names")
-                participants.append(KnownParticipant(node, incarnation, tuple(hosted)))
-        except (ValueError, KeyError, TypeError) as error:
-            raise StateFileError(
-                f"{source}: not a ContextROS state file ({error}); "
-                "fix or delete it to start from the participants' state"
-            ) from error
-        return cls(state, proposed, tuple(participants))
+            raw = path.read_bytes()
+        except OSError as error:
+            raise StateFileError(f"{path}: cannot be read ({error.strerror})") from error
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise _damaged(str(path), f"not UTF-8 at byte {error.start}") from error
+        return cls.from_json(text, str(path))
+
+
+def _damaged(source: str, what: str) -> StateFileError:
+    return StateFileError(
+        f"{source}: not a ContextROS state file: {what}; "
+        "fix or delete it to start from the participants' state"
+    )
+
+
+def _json_object(text: str, source: str) -> dict[str, Any]:
+    if not text.strip():
+        raise _damaged(source, "it is empty")
+    try:
+        data = json.loads(text)
+    except json.JSONDecodeError as error:
+        where = f"line {error.lineno} column {error.colno}"
+        raise _damaged(source, f"not JSON at {where} ({error.msg.removesuffix(' at')})") from error
+    except RecursionError as error:
+        raise _damaged(source, "not JSON (nested too deeply)") from error
+    if not isinstance(data, dict):
+        raise _damaged(source, f"not a JSON object but {_shown(data)}")
+    return data
+
+
+def _field(data: dict[str, Any], name: str, source: str) -> Any:
+    if name not in data:
+        raise _damaged(source, f"missing field {name!r}")
+    return data[name]
+
+
+def _participant(entry: Any, source: str) -> KnownParticipant:
+    if not isinstance(entry, dict):
+        raise _damaged(source, f"a participant must be a JSON object, not {_shown(entry)}")
+    node = _field(entry, "node", source)
+    incarnation = _field(entry, "incarnation", source)
+    hosted = entry.get("hosted", [])
+    if not (isinstance(node, str) and node.startswith("/")):
+        raise _damaged(source, f"participant node must be a node name, not {_shown(node)}")
+    if not isinstance(incarnation, str):
+        raise _damaged(source, f"participant {node}: incarnation must be a string")
+    if not isinstance(hosted, list) or not all(isinstance(h, str) for h in hosted):
+        raise _damaged(source, f"participant {node}: hosted nodes must be a list of names")
+    return KnownParticipant(node, incarnation, tuple(hosted))
+
+
+_JSON_KINDS = {dict: "an object", list: "a list", str: "a string", bool: "true or false"}
+
+
+def _shown(value: Any) -> str:
+    """A JSON value's kind, with the value when it is short: `a list`, `a string ('3')`."""
+    if value is None:
+        return "null"
+    kind = _JSON_KINDS.get(type(value), "a number")
+    if isinstance(value, dict | list):
+        return kind
+    text = repr(value)
+    return f"{kind} ({text})" if len(text) <= 40 else kind

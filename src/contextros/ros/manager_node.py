@@ -95,9 +95,7 @@ class StateFile:
         self.path = path
 
     def load(self) -> ManagerMemory | None:
-        if not self.path.exists():
-            return None
-        return ManagerMemory.from_json(self.path.read_text(encoding="utf-8"), str(self.path))
+        return ManagerMemory.read(self.path)
 
     def save(self, memory: ManagerMemory | LayerState) -> None:
         if isinstance(memory, LayerState):

@@ -3,7 +3,9 @@ proposed, the participants it knew; and the deadlines of commands that wait."""
 
 from __future__ import annotations
 
+import json
 from dataclasses import replace
+from pathlib import Path
 
 import pytest
 
@@ -128,3 +130,79 @@ def test_a_node_that_rejoins_during_a_synchronous_command_is_waited_for() -> Non
     assert 1 not in replies(actions), "answered 'every node' while /c, back, had not applied"
     actions = manager.receive_status(report("/c", applied=2, active=("Night",)), 4.0)
     assert replies(actions)[1].acknowledged == ("/a", "/b", "/c")
+
+
+def _corpus(directory: Path) -> list[tuple[Path, str]]:
+    """Damaged state files, each with what the message must say is wrong."""
+    good = ManagerMemory(
+        LayerState(4, ("Indoor",), "me", "why"), 6, (KnownParticipant("/a", "i1", ("/h",)),)
+    ).to_json()
+    fields = json.loads(good)
+    files: list[tuple[str, bytes | None, str]] = [
+        ("empty", b"", "it is empty"),
+        ("binary", bytes(range(256)), "not UTF-8 at byte 128"),
+        ("latin1", good.replace("me", "m\xe9").encode("latin-1"), "not UTF-8 at byte"),
+        ("list", b'[{"epoch": 4, "active": []}]', "not a JSON object but a list"),
+        ("number", b"7", "not a JSON object but a number"),
+        ("null", b"null", "not a JSON object but null"),
+        ("deep", b"[" * 100_000, "not JSON"),
+        ("directory", None, "it is a directory"),
+    ]
+    files += [
+        (f"cut-{at}", good[:at].encode(), "not JSON at line ")
+        for at in (1, 2, len(good) // 3, len(good) // 2, len(good) - 1)
+    ]
+    for key in ("epoch", "active"):
+        missing = {k: v for k, v in fields.items() if k != key}
+        files.append((f"no-{key}", json.dumps(missing).encode(), f"missing field {key!r}"))
+    wrong = {
+        "epoch": ("3", "field 'epoch' must be a non-negative integer, not a string ('3')"),
+        "active": ("Indoor", "field 'active' must be a list of layer names, not a string"),
+        "requester": (5, "field 'requester' must be a string, not a number (5)"),
+        "reason": ([], "field 'reason' must be a string, not a list"),
+        "stamp": ({}, "field 'stamp' must be a number, not an object"),
+        "proposed_epoch": (None, "field 'proposed_epoch' must be an integer, not null"),
+        "participants": ({}, "field 'participants' must be a list, not an object"),
+    }
+    for key, (value, message) in wrong.items():
+        files.append((f"wrong-{key}", json.dumps(fields | {key: value}).encode(), message))
+    files += [
+        (
+            "participant-list",
+            json.dumps(fields | {"participants": [[]]}).encode(),
+            "a participant must be a JSON object, not a list",
+        ),
+        (
+            "participant-no-node",
+            json.dumps(fields | {"participants": [{"incarnation": "1"}]}).encode(),
+            "missing field 'node'",
+        ),
+        (
+            "participant-hosted",
+            json.dumps(
+                fields | {"participants": [{"node": "/a", "incarnation": "1", "hosted": [1]}]}
+            ).encode(),
+            "participant /a: hosted nodes must be a list of names",
+        ),
+    ]
+    made = []
+    for name, content, message in files:
+        path = directory / f"{name}.json"
+        if content is None:
+            path.mkdir()
+        else:
+            path.write_bytes(content)
+        made.append((path, message))
+    return made
+
+
+def test_every_damaged_state_file_is_one_clear_message_naming_the_file(tmp_path: Path) -> None:
+    for path, message in _corpus(tmp_path):
+        with pytest.raises(StateFileError) as refused:
+            ManagerMemory.read(path)
+        text = str(refused.value)
+        assert text.startswith(f"{path}: not a ContextROS state file: "), text
+        assert message in text, (message, text)
+        # No Python internals: exception names, a repr of the parser's own words.
+        assert not any(word in text for word in ("Error", "indices", "file ('", "object has")), text
+    assert ManagerMemory.read(tmp_path / "absent.json") is None
