@@ -128,7 +128,7 @@ def test_refusals_keep_their_exit_statuses_and_messages(daemon: Path) -> None:
         "status", "--namespace", "/nobody_here", "--wait-manager", "0.5", runtime=daemon
     )
     assert nobody.returncode == 3, nobody.stderr
-    assert "no Layer manager answers on /nobody_here/contextros/activate" in nobody.stderr
+    assert "no Layer manager answers on /nobody_here/contextros/query " in nobody.stderr
 
 
 def test_concurrent_commands_are_all_answered(daemon: Path) -> None:

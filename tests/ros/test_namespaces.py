@@ -113,7 +113,7 @@ def test_the_command_line_takes_the_namespace(robots: dict[str, Robot]) -> None:
 def test_no_manager_in_a_namespace_is_named_in_the_error() -> None:
     missing = contextros("status", "--namespace", "/robot9", "--wait-manager", "0.5")
     assert missing.returncode == 3
-    assert "/robot9/contextros/activate" in missing.stderr
+    assert "no Layer manager answers on /robot9/contextros/query " in missing.stderr  # status's
 
 
 @pytest.mark.parametrize(

@@ -17,7 +17,7 @@ def client_answer(client: LayerClient, request: dict[str, Any]) -> dict[str, Any
     """The answer to `request`, a "status" or "activate" request as the command line
     sends it to the daemon (checked by `wire.request_problem`)."""
     try:
-        client.wait_for_manager(request["wait_manager"])
+        client.wait_for_manager(request["wait_manager"], commands=request["command"] != "status")
         if request["command"] == "status":
             from contextros.ros.messages import registry_to_dict
 

@@ -70,8 +70,9 @@ class LayerClient:
         )
         self._query: Any = node.create_client(QueryRegistry, QUERY_SERVICE, qos_profile=QUERY_QOS)
 
-    def wait_for_manager(self, timeout: float = 5.0) -> None:
-        """Return once the manager's services are discovered and answer this client.
+    def wait_for_manager(self, timeout: float = 5.0, *, commands: bool = True) -> None:
+        """Return once the manager's services are discovered and answer this client (with
+        `commands=False`, only its query service: enough for `query`).
 
         Polls every 10 ms (rclpy's own `wait_for_service` sleeps 0.25 s between looks),
         then asks the registry, again at growing intervals: a service can be discovered by
@@ -80,11 +81,14 @@ class LayerClient:
         after an answered query does not wait seconds for a lost reply.
         """
         deadline = time.monotonic() + timeout
-        while not (self._activate.service_is_ready() and self._query.service_is_ready()):
+        needed = [(self._activate, ACTIVATE_SERVICE)] if commands else []
+        needed.append((self._query, QUERY_SERVICE))
+        while missing := [name for client, name in needed if not client.service_is_ready()]:
             if time.monotonic() >= deadline or not self.node.context.ok():
                 domain = os.environ.get("ROS_DOMAIN_ID", "0")
+                service = self.node.resolve_service_name(missing[0])
                 raise ManagerError(
-                    f"no Layer manager answers on {self.service_name} (ROS_DOMAIN_ID={domain}) "
+                    f"no Layer manager answers on {service} (ROS_DOMAIN_ID={domain}) "
                     f"after {timeout:g} s; start one with `contextros manager` (in the same "
                     "namespace: `--ros-args -r __ns:=...`)"
                 )
@@ -107,7 +111,8 @@ class LayerClient:
                     return
                 if time.monotonic() >= deadline:
                     raise ManagerError(
-                        f"the Layer manager on {self.service_name} did not answer within "
+                        "the Layer manager on "
+                        f"{self.node.resolve_service_name(QUERY_SERVICE)} did not answer within "
                         f"{timeout:g} s"
                     )
                 wait = min(2 * wait, PROBE_MAX)
