@@ -56,9 +56,15 @@ class Sensors:
 
 
 @pytest.fixture(scope="module")
-def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Child]:
-    rules = tmp_path_factory.mktemp("rules") / "robot.layers"
-    rules.write_text(RULES, encoding="utf-8")
+def rules(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The rules' file; the manager is given its full path, and its log names it so."""
+    path = tmp_path_factory.mktemp("rules") / "robot.layers"
+    path.write_text(RULES, encoding="utf-8")
+    return path
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient, rules: Path) -> Iterator[Child]:
     group = ProcessGroup()
     try:
         participant = group.participant("r1")
@@ -85,7 +91,7 @@ def active(client: LayerClient) -> list[str]:
 
 
 def test_a_rule_activates_its_layer_with_itself_as_the_reason(
-    client: LayerClient, sensors: Sensors, system: Child
+    client: LayerClient, sensors: Sensors, system: Child, rules: Path
 ) -> None:
     sensors.keep_publishing(
         lambda: "Indoor" in active(client), fix=-1, percentage=50.0, what="Indoor from no GPS fix"
@@ -98,6 +104,11 @@ def test_a_rule_activates_its_layer_with_itself_as_the_reason(
     assert registry.reason == "battery.percentage < 20 for 0.2 s (robot.layers:2)"
     shown = contextros("status")
     assert "(rule Battery: battery.percentage < 20 for 0.2 s (robot.layers:2))" in shown.stdout
+    system.wait_for(
+        lambda _: any(f"rule Battery ({rules}:2): Night while" in line for line in system.lines),
+        5,
+        "the manager's log of the rule, naming its file as given",
+    )
     system.wait_for(
         lambda _: any(
             "rule Battery switched to Night: 1 nodes applied it" in line for line in system.lines
@@ -116,9 +127,9 @@ def test_status_shows_each_rule_s_value_hold_timer_hysteresis_and_last_firing(
     def battery_rule() -> dict[str, object]:
         shown = contextros("status", "--json")
         assert shown.returncode == 0, shown.stderr
-        rules = {rule["name"]: rule for rule in json.loads(shown.stdout)["rules"]}
-        assert set(rules) == {"Battery", "Place"}
-        return rules["Battery"]
+        shown_rules = {rule["name"]: rule for rule in json.loads(shown.stdout)["rules"]}
+        assert set(shown_rules) == {"Battery", "Place"}
+        return shown_rules["Battery"]
 
     deadline = time.monotonic() + 10
     while (rule := battery_rule())["readings"] != ["battery.percentage = 23.0"]:
@@ -410,3 +421,20 @@ def test_a_manual_command_drops_the_refused_firings_older_than_it(client: LayerC
         assert sent == [night, night, night, night]
     finally:
         manager.destroy_node()
+
+
+def test_a_layer_file_that_cannot_be_read_is_named_with_no_empty_quote_nor_caret(
+    tmp_path: Path,
+) -> None:
+    missing, directory, binary = (
+        tmp_path / "gone.layers",
+        tmp_path / "dir.layers",
+        tmp_path / "bin.layers",
+    )
+    directory.mkdir()
+    binary.write_bytes(b"\xff\xfe")
+    manager = refused_manager(missing, directory, binary)
+    for path in (missing, directory, binary):
+        assert f"{path}:1:1: error: cannot read the layer file: " in manager.stderr
+    lines = manager.stderr.splitlines()
+    assert not [line for line in lines if not line.strip() or line.strip() == "^"], lines

@@ -32,7 +32,7 @@ class Diagnostic:
     path: str
     line: int
     col: int
-    source_line: str = ""
+    source_line: str | None = None  # None: no line to quote (an unreadable or empty file)
     # Found by a parser: an error there comes before the checker's findings, which may only
     # follow from it (a layer whose block was not closed is "unknown" further up).
     syntax: bool = False
@@ -42,8 +42,11 @@ class Diagnostic:
         return self.severity is Severity.ERROR
 
     def render(self) -> str:
-        """`file:line:col: error: message`, then the line and a caret under the fault."""
+        """`file:line:col: error: message`, then the line and a caret under the fault (when
+        there is a line to quote)."""
         head = f"{self.path}:{self.line}:{self.col}: {self.severity.value}: {self.message}"
+        if self.source_line is None:
+            return head
         text = printable(self.source_line)  # quoted even when blank: the caret still says where
         caret = " " * max(0, min(self.col - 1, len(text))) + "^"
         return f"{head}\n    {text}\n    {caret}"
@@ -138,8 +141,8 @@ class DiagnosticSink:
         self.items: list[Diagnostic] = []
         self.syntax = syntax  # a parser's sink (see `Diagnostic.syntax`)
 
-    def quote(self, line: int) -> str:
-        return self.lines[line - 1] if 1 <= line <= len(self.lines) else ""
+    def quote(self, line: int) -> str | None:
+        return self.lines[line - 1] if 1 <= line <= len(self.lines) else None
 
     def add(self, severity: Severity, message: str, line: int, col: int) -> None:
         # Python reports an unexpected end of file on the line after the last one.

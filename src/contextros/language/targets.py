@@ -95,5 +95,5 @@ def _stub(cls: type, name: str) -> FunctionType:
 
 def _fail(message: str, where: tuple[str, int, int]) -> None:
     path, line, col = where
-    source_line = linecache.getline(path, line)
+    source_line = linecache.getline(path, line) or None  # "": no such line
     raise LayerTargetError([Diagnostic(Severity.ERROR, message, path, line, col, source_line)])

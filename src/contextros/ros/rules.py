@@ -77,7 +77,8 @@ class RuleRunner:
         self._unpublished_logged: set[str] = set()  # topics already logged as unpublished
         self._discovery = node.create_timer(discovery_period, self._discover)
         for rule in rules.rules:
-            node.get_logger().info(f"rule {rule.name} ({rules.where(rule)}): {rule.text}")
+            # The file as given on the command line (`where`, in reasons on the wire: its name).
+            node.get_logger().info(f"rule {rule.name} ({rule.path}:{rule.at.line}): {rule.text}")
         self._discover()
 
     # -- binding ------------------------------------------------------------------------
