@@ -3,6 +3,10 @@ node's executor, and every node that says no is named."""
 
 from __future__ import annotations
 
+import re
+import textwrap
+from pathlib import Path
+
 from contextros.ros import LayerClient
 from tests.ros.processes import ProcessGroup
 from tests.ros.system import LIVENESS, settle, wait_registry
@@ -54,3 +58,29 @@ def test_every_node_that_says_no_is_named(client: LayerClient, processes: Proces
     assert done.returncode == 1, done
     assert "acknowledged" not in done.stdout, done.stdout
     assert "/n1 vetoed: battery low" in done.stderr and "/n2 vetoed: arm busy" in done.stderr
+
+
+def test_the_veto_example_of_the_protocol_docs_refuses_with_its_reason(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """docs/protocol.md's `veto_node.py`, run as it is: a veto reads the proposal's fields."""
+    docs = (Path(__file__).resolve().parents[2] / "docs" / "protocol.md").read_text()
+    found = re.search(r"```python\n( *# veto_node\.py\n.*?) *```", docs, re.S)
+    assert found is not None, "docs/protocol.md has no veto_node.py example"
+    script = tmp_path / "veto_node.py"
+    script.write_text(textwrap.dedent(found.group(1)), encoding="utf-8")
+    processes.start("veto_node", [str(script)])
+    processes.participant("other")
+    processes.manager("--liveness-timeout", LIVENESS)
+    client.wait_for_manager(15.0)
+    wait_registry(
+        client,
+        lambda r: {p.node for p in r.participants} == {"/veto_node", "/other"} and not r.recovering,
+        what="the example's node registered",
+    )
+    result = client.request(["Night"], atomic=True, timeout=5)
+    assert not result.success
+    assert result.not_acknowledged == ("/veto_node",), result.message
+    assert "/veto_node vetoed: battery low" in result.message, result.message
+    log = "\n".join(next(c for c in processes.children if c.name == "veto_node").lines)
+    assert "Traceback" not in log and "failed" not in result.message, log
