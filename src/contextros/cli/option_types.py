@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import dataclass
+from typing import TypeVar
 
 from contextros.cli.daemon.wire import MAX_SECONDS
 
@@ -14,6 +15,7 @@ from contextros.cli.daemon.wire import MAX_SECONDS
 # (importing it would import the protocol for every command; tests/cli checks they agree).
 # Any other wait is bounded by the daemon's MAX_SECONDS (one day).
 MAX_TIMEOUT = 3600.0
+T = TypeVar("T", int, float)
 MAX_COUNT = 1_000_000  # nodes a command expects (the daemon's and the manager's bound)
 
 
@@ -25,17 +27,11 @@ class Seconds:
     most: float = MAX_SECONDS
 
     def __call__(self, text: str) -> float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a number of seconds") from None
+        span = "above 0 and at most" if self.positive else "from 0 to"
+        what = f"a number of seconds {span} {self.most:g}"
+        value = _parsed(text, float, what)
         least_ok = value > 0 if self.positive else value >= 0
-        if not (math.isfinite(value) and least_ok and value <= self.most):
-            span = "above 0 and at most" if self.positive else "from 0 to"
-            raise argparse.ArgumentTypeError(
-                f"{text!r} is not a number of seconds {span} {self.most:g}"
-            )
-        return value
+        return _checked(text, value, math.isfinite(value) and least_ok and value <= self.most, what)
 
 
 @dataclass(frozen=True)
@@ -46,15 +42,22 @@ class Count:
     most: int = MAX_COUNT
 
     def __call__(self, text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-        if not self.least <= value <= self.most:
-            raise argparse.ArgumentTypeError(
-                f"{text!r} is not a whole number from {self.least} to {self.most}"
-            )
-        return value
+        what = f"a whole number from {self.least} to {self.most}"
+        value = _parsed(text, int, what)
+        return _checked(text, value, self.least <= value <= self.most, what)
+
+
+def _parsed(text: str, kind: type[T], what: str) -> T:
+    try:
+        return kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}") from None
+
+
+def _checked(text: str, value: T, good: bool, what: str) -> T:
+    if not good:
+        raise argparse.ArgumentTypeError(f"{text!r} is not {what}")
+    return value
 
 
 # A synchronous or atomic activation's timeout (0: the manager's default), as the manager
