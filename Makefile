@@ -9,7 +9,7 @@ export ROS_AUTOMATIC_DISCOVERY_RANGE ?= LOCALHOST
 export OPENBLAS_NUM_THREADS ?= 1
 unexport RMW_IMPLEMENTATION
 
-.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-rclcpp test-core explore fuzz wheel bench lint clean observe dashboard
+.PHONY: all venv ros cpp cpp-demo demo demo-rescue test test-slow test-rclcpp test-core explore fuzz wheel bench lint clean observe dashboard print-rclcpp-sources
 
 all: test
 
@@ -132,7 +132,10 @@ test-slow: ros cpp $(VENV)/.stamp-dev
 # Debian's libconsole-bridge-dev), or a system ROS 2's: `make test-rclcpp
 # RCLCPP_PREFIX=/opt/ros/<distro>`. Then an rclcpp node, a lifecycle node and two components
 # follow the manager beside a Python node (tests/ros/test_rclcpp.py; docs/cpp.md).
-RCLCPP_SOURCES ?= ../shared/vendor/rclcpp/rclcpp-29.3.0-src.tar.gz
+# The tarball lies in the workplace's shared/vendor (beside the checkout, or at /work/shared).
+RCLCPP_TARBALL := vendor/rclcpp/rclcpp-29.3.0-src.tar.gz
+RCLCPP_SOURCES ?= $(firstword $(wildcard ../shared/$(RCLCPP_TARBALL) /work/shared/$(RCLCPP_TARBALL)) \
+  ../shared/$(RCLCPP_TARBALL))
 RCLCPP_PREFIX ?=
 # With a system ROS 2 (sourced, with contextros_interfaces built by colcon: docs/install.md)
 # the C++ side is found as in a colcon workspace, without the wheels.
@@ -202,3 +205,7 @@ lint: $(VENV)/.stamp-dev
 
 clean:
 	rm -rf $(VENV) build dist src/*.egg-info .pytest_cache .mypy_cache .ruff_cache
+
+# Where make test-rclcpp takes rclcpp's sources from (.ci/run asks).
+print-rclcpp-sources:
+	@echo $(abspath $(RCLCPP_SOURCES))
