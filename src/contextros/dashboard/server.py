@@ -11,6 +11,7 @@ import asyncio
 import contextlib
 import json
 import signal
+import threading
 from importlib import resources
 from typing import Any
 
@@ -27,6 +28,7 @@ class DashboardServer:
         self.model = model
         self._wakeups: set[asyncio.Event] = set()  # one per connected page
         self._loop: asyncio.AbstractEventLoop | None = None
+        self._loop_lock = threading.Lock()  # notify() against stop() closing the loop
         self.app = web.Application()
         self.app.router.add_get("/", self._index)
         self.app.router.add_get("/static/{name}", self._static)
@@ -34,9 +36,11 @@ class DashboardServer:
         self.app.router.add_get("/snapshot.json", self._snapshot)
 
     def notify(self) -> None:
-        """The model changed (callable from any thread)."""
-        if self._loop is not None:
-            self._loop.call_soon_threadsafe(self._wake_all)
+        """The model changed (callable from any thread; nothing once the server stopped:
+        the ROS thread may still report while the loop closes)."""
+        with self._loop_lock:
+            if self._loop is not None:
+                self._loop.call_soon_threadsafe(self._wake_all)
 
     def _wake_all(self) -> None:
         for wakeup in self._wakeups:
@@ -50,6 +54,12 @@ class DashboardServer:
         await site.start()
         bound = runner.addresses[0][1] if runner.addresses else port  # port 0: the one taken
         return runner, int(bound)
+
+    async def stop(self, runner: web.AppRunner) -> None:
+        """No more wake-ups from other threads, then the server's teardown."""
+        with self._loop_lock:
+            self._loop = None
+        await runner.cleanup()
 
     async def _index(self, request: web.Request) -> web.StreamResponse:
         del request
@@ -112,7 +122,7 @@ def serve(server: DashboardServer, host: str, port: int, on_ready: Any) -> None:
         try:
             await stop.wait()
         finally:
-            await runner.cleanup()
+            await server.stop(runner)
 
     previous = {signum: signal.getsignal(signum) for signum in (signal.SIGINT, signal.SIGTERM)}
     try:
