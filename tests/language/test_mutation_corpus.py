@@ -189,6 +189,12 @@ def test_the_first_diagnostic_is_the_mutation(path: Path) -> None:
 
 ROBOT = (ROOT / "tests/language/fixtures/cpp/robot.cpp.layers").read_text()
 CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
+RESCUE = (ROOT / "examples/rescue/rescue.layers").read_text()
+ROBOT_RULES = (
+    ROBOT + "\nrule Battery: Indoor while battery.percentage < 20\n"
+    "topic battery: sensor_msgs/msg/BatteryState\n"
+    "parameter Indoor: controller max_speed = 0.3\n"
+)
 
 
 @pytest.mark.parametrize(
@@ -220,7 +226,9 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             ROBOT,
             "Layer Indoor [",
             "Layr Indoor [",
-            "21:1: expected a declaration ('Layer', 'base' or 'group'), found 'Layr' "
+            "21:1: expected a declaration ('Layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'Layr' "
             "(misspelt 'Layer'?)",
         ),
         (
@@ -235,7 +243,9 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             ROBOT,
             "group place:",
             "grou place:",
-            "13:1: expected a declaration ('Layer', 'base' or 'group'), found 'grou' "
+            "13:1: expected a declaration ('Layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'grou' "
             "(misspelt 'group'?)",
         ),
         (
@@ -243,7 +253,9 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             CLEANER,
             "layer Indoor:",
             "layr Indoor:",
-            "21:1: expected a declaration ('layer', 'base' or 'group'), found 'layr' "
+            "21:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'layr' "
             "(misspelt 'layer'?)",
         ),
         (
@@ -251,7 +263,9 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             CLEANER,
             "group location:",
             "grou location:",
-            "15:1: expected a declaration ('layer', 'base' or 'group'), found 'grou' "
+            "15:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'grou' "
             "(misspelt 'group'?)",
         ),
         (
@@ -259,7 +273,9 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             CLEANER,
             "\nbase:",
             "\nbas:",
-            "17:1: expected a declaration ('layer', 'base' or 'group'), found 'bas' "
+            "17:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'bas' "
             "(misspelt 'base'?)",
         ),
         (
@@ -269,8 +285,65 @@ CLEANER = (ROOT / "tests/language/fixtures/cleaner.layers").read_text()
             "  proceed()\n  return area;",
             "27:12: C++ syntax error: missing ';' after 'proceed()'",
         ),
+        (
+            "x.layers",
+            RESCUE,
+            "rule Battery",
+            "ule Battery",
+            "30:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'ule' (misspelt 'rule'?)",
+        ),
+        (
+            "x.layers",
+            RESCUE,
+            "topic battery",
+            "opic battery",
+            "33:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'opic' (misspelt 'topic'?)",
+        ),
+        (
+            "x.layers",
+            RESCUE,
+            "parameter LowBattery",
+            "arameter LowBattery",
+            "38:1: expected a declaration ('layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'arameter' (misspelt 'parameter'?)",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT_RULES,
+            "rule Battery",
+            "ule Battery",
+            "50:1: expected a declaration ('Layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'ule' (misspelt 'rule'?)",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT_RULES,
+            "topic battery",
+            "opic battery",
+            "51:1: expected a declaration ('Layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'opic' (misspelt 'topic'?)",
+        ),
+        (
+            "x.cpp.layers",
+            ROBOT_RULES,
+            "parameter Indoor",
+            "arameter Indoor",
+            "52:1: expected a declaration ('Layer', 'base', 'group', "
+            "'rule', 'parameter', 'lifecycle' or 'topic'), "
+            "found 'arameter' (misspelt 'parameter'?)",
+        ),
     ],
-    ids=["]", "{", "[", "Layr", ";", "grou", "layr", "py grou", "bas", "; after proceed()"],
+    ids=[
+        *("]", "{", "[", "Layr", ";", "grou", "layr", "py grou", "bas", "; after proceed()"),
+        *("py ule", "py opic", "py arameter", "ule", "opic", "arameter"),
+    ],
 )
 def test_the_issues_cases_report_the_real_error_first(
     name: str, source: str, old: str, new: str, first: str

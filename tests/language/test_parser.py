@@ -143,7 +143,9 @@ def test_comments_and_blank_lines_between_declarations() -> None:
             (
                 3,
                 1,
-                "expected a declaration ('layer', 'base' or 'group'), found 'x'; Python code "
+                "expected a declaration ('layer', 'base', 'group', "
+                "'rule', 'parameter', 'lifecycle' or 'topic'), "
+                "found 'x'; Python code "
                 "belongs in the header, above the first declaration",
             ),
         ),

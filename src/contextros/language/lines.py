@@ -15,7 +15,6 @@ from contextros.language.rules import parse_rule
 from contextros.language.syntax import LayerFile, Position, Ref
 from contextros.language.topics import parse_topic
 
-LINE_WORDS = ("rule", "parameter", "lifecycle", "topic")
 _NAME = r"[^\W\d]\w*"
 # What starts such a declaration at column 1, in every flavour (enough to end a header: none
 # is valid Python or C++): the word and a name, then ':', or (a declaration missing its ':',

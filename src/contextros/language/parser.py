@@ -43,7 +43,12 @@ from contextros.language.syntax import (
     SourceLine,
     char_of_byte,
 )
-from contextros.language.words import RELATIONS, found_text, misspelt
+from contextros.language.words import (
+    RELATIONS,
+    a_declaration,
+    expected_declaration,
+    misspelt,
+)
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
 _Where = Callable[[int, int], tuple[int, int]]
@@ -226,8 +231,8 @@ class _Parser:
                 continue
             if text[0] in " \t":
                 self.sink.error(
-                    "unexpected indentation: expected a declaration ('layer', 'base' or "
-                    "'group') at the start of the line",
+                    f"unexpected indentation: expected {a_declaration('layer')} at the start "
+                    "of the line",
                     i + 1,
                     _indent_width(text) + 1,
                 )
@@ -301,8 +306,7 @@ class _Parser:
         if word is None:
             found = re.split(r"[\s:]", self.lines[start], maxsplit=1)[0] or self.lines[start]
             self.sink.error(
-                "expected a declaration ('layer', 'base' or 'group'), found "
-                f"{found_text(found, ('layer', 'group', 'base'))}; "
+                f"{expected_declaration('layer', found)}; "
                 "Python code belongs in the header, above the first declaration",
                 start + 1,
                 1,
@@ -347,8 +351,7 @@ class _Parser:
             return
         found = first.text if first is not None else self.lines[start].strip()
         self.sink.error(
-            "expected a declaration ('layer', 'base' or 'group'), found "
-            f"{found_text(found, ('layer', 'group', 'base'))}; "
+            f"{expected_declaration('layer', found)}; "
             "Python code belongs in the header, above the first declaration",
             start + 1,
             1,

@@ -6,6 +6,26 @@ from collections.abc import Iterable
 
 # A layer's relations to others, in the order a declaration lists them (both flavours).
 RELATIONS = ("excludes", "requires", "after")
+# The one-line declarations, alike in every flavour (lines.py parses them).
+LINE_WORDS = ("rule", "parameter", "lifecycle", "topic")
+
+
+def declaration_words(layer_word: str) -> tuple[str, ...]:
+    """Every declaration word of the flavour whose layer word is `layer_word`."""
+    return (layer_word, "base", "group", *LINE_WORDS)
+
+
+def a_declaration(layer_word: str) -> str:
+    """`a declaration ('layer', 'base', ... or 'topic')`: what may start a line."""
+    words = [repr(word) for word in declaration_words(layer_word)]
+    return f"a declaration ({', '.join(words[:-1])} or {words[-1]})"
+
+
+def expected_declaration(layer_word: str, found: str) -> str:
+    """`expected a declaration (...), found 'ule' (misspelt 'rule'?)`: every declaration
+    word, and the one `found` may have meant."""
+    meant = found_text(found, declaration_words(layer_word))
+    return f"expected {a_declaration(layer_word)}, found {meant}"
 
 
 def misspelt(word: str, keywords: Iterable[str]) -> str:

@@ -4,8 +4,7 @@ or a group may have in generated C++."""
 from __future__ import annotations
 
 from contextros.language.cpp.tokens import identifier_char
-from contextros.language.lines import LINE_WORDS
-from contextros.language.words import misspelt
+from contextros.language.words import LINE_WORDS, misspelt
 
 LAYER_WORDS = ("Layer", "layer")
 DECLARATION_WORDS = (*LAYER_WORDS, "group", "base", *LINE_WORDS)

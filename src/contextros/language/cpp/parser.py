@@ -16,7 +16,6 @@ from __future__ import annotations
 from contextros.language.cpp.blocks import BlockReader
 from contextros.language.cpp.header import HeaderReader
 from contextros.language.cpp.names import (
-    BLOCK_WORDS,
     DECLARATION_WORDS,
     LAYER_WORDS,
     name_problem,
@@ -26,7 +25,7 @@ from contextros.language.cpp.tokens import SourceText, Token, tokens
 from contextros.language.cpp.tree import CppFunction, CppLayerFile
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink
 from contextros.language.syntax import BaseBlock, GroupDecl, LayerDecl, Ref
-from contextros.language.words import RELATIONS, found_text
+from contextros.language.words import RELATIONS, expected_declaration
 
 
 def parse_with_diagnostics(
@@ -162,11 +161,9 @@ class _Parser(Reader):
             elif token.text == "base":
                 i = self._base(found, i, result)
             else:
-                found_word = found_text(token.text, BLOCK_WORDS)
                 self.error(
-                    f"expected a declaration ('Layer', 'base' or 'group'), found {found_word}"
-                    "; C++ code belongs in the header part, above the first "
-                    "declaration, or in a layer's [ ... ] block",
+                    f"{expected_declaration('Layer', token.text)}; C++ code belongs in the "
+                    "header part, above the first declaration, or in a layer's [ ... ] block",
                     token.start,
                 )
                 i = self._recover(found, i + 1)
