@@ -270,6 +270,9 @@ def run_replay(args: argparse.Namespace) -> int:
             import matplotlib  # noqa: F401 - only whether it is there
         except ImportError as error:
             return _missing("rules replay --plot", error)
+        if problem := _plot_problem(args.plot):
+            print(f"contextros rules replay: --plot {args.plot}: {problem}", file=sys.stderr)
+            return USAGE
     try:
         rules = RuleSet.from_files(args.rules)
     except LayerError as error:
@@ -297,6 +300,18 @@ def run_replay(args: argparse.Namespace) -> int:
     else:
         _print_replay(result, recorded, differences, start, end, args)
     return DIFFERENT if args.strict and differences else 0
+
+
+def _plot_problem(path: Path) -> str:
+    """Why the timeline cannot be written to `path` ('' if it can), known before replaying."""
+    folder = path.parent
+    if path.is_dir():
+        return "is a directory"
+    if not folder.is_dir():
+        return f"no directory {folder}"
+    if not os.access(folder, os.W_OK):
+        return f"the directory {folder} is not writable"
+    return ""
 
 
 def _resolve(namespace: str, topic: str) -> str:
