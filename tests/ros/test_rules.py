@@ -18,7 +18,7 @@ from contextros.ros import LayerClient
 from tests.ros.processes import Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
 from tests.ros.test_cli import contextros
-from tests.ros.test_topic_declarations import heads
+from tests.ros.test_topic_declarations import heads, manager_line
 
 RULES = """\
 # The robot's rules
@@ -344,6 +344,31 @@ def test_a_topic_no_node_publishes_is_logged_once_after_the_grace_period(
         assert "rules read /typo/gps (sensor_msgs/msg/NavSatFix)" in output
     finally:
         sensors.node.destroy_node()
+
+
+def test_a_type_only_subscribers_give_is_not_said_to_be_published(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    rules = tmp_path / "robot.layers"
+    rules.write_text(
+        "topic battery: robot_power_msgs/msg/Battery\n"
+        "rule Low: Night while battery.percentage < 20\n",
+        encoding="utf-8",
+    )
+    node = Node("battery_reader", namespace="/unpublished")
+    node.create_subscription(BatteryState, "battery", lambda _: None, 10)
+    manager = processes.manager("--rules", str(rules), "--ros-args", "-r", "__ns:=/unpublished")
+    try:
+        line = manager_line(manager, "/unpublished/battery has type", "the type mismatch")
+        assert line.endswith(
+            f"{rules}:1:16: error: topic /unpublished/battery has type "
+            "sensor_msgs/msg/BatteryState on the ROS graph, from its subscribers (no node "
+            "publishes it), but topic 'battery' is declared as robot_power_msgs/msg/Battery: "
+            "the rules reading it (Low) stay off"
+        ), line
+        assert "is published as" not in manager.output()
+    finally:
+        node.destroy_node()
 
 
 def test_a_byte_field_is_a_number_and_a_raising_rule_does_not_stop_the_manager(

@@ -127,13 +127,16 @@ class RuleRunner:
             self._failed_why[topic] = why
 
     def _bind(self, topic: str, resolved: str, type_name: str) -> None:
-        mismatch = self.rules.type_mismatch(topic, resolved, type_name)
+        # The graph's type may be only its subscribers' (nothing publishes the topic yet).
+        published = self.node.count_publishers(resolved) > 0
+        mismatch = self.rules.type_mismatch(topic, resolved, type_name, published=published)
         if mismatch is not None:
             # Not bound: a publisher of the declared type may come instead (checked again).
-            if self._failed.get(topic) != type_name:
+            seen = type_name if published else f"{type_name} (subscribed)"
+            if self._failed.get(topic) != seen:
                 self.errors.append(mismatch)
                 self.node.get_logger().error(f"rules on {resolved} stay off:\n{mismatch.render()}")
-                self._failed[topic] = type_name
+                self._failed[topic] = seen
                 self._failed_why[topic] = mismatch.message
             return
         try:

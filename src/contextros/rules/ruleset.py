@@ -261,16 +261,24 @@ class RuleSet:
             found += sink.items
         return found
 
-    def type_mismatch(self, topic: str, resolved: str, type_name: str) -> Diagnostic | None:
-        """The error for `topic` published (as `resolved`) with `type_name` while declared
-        with another type, at the declaration's type; None when they agree or it is not
-        declared."""
+    def type_mismatch(
+        self, topic: str, resolved: str, type_name: str, *, published: bool = True
+    ) -> Diagnostic | None:
+        """The error for `topic` seen on the graph (as `resolved`) with `type_name` while
+        declared with another type, at the declaration's type; None when they agree or it is
+        not declared. Not `published`: only subscribers give the graph that type."""
         declaration = self.topic_types.get(topic)
         if declaration is None or declaration.type_name == type_name:
             return None
         users = [rule.name for rule in self.rules if any(r.topic == topic for r in rule.fields)]
+        seen = (
+            f"is published as {type_name}"
+            if published
+            else f"has type {type_name} on the ROS graph, from its subscribers (no node "
+            "publishes it)"
+        )
         mismatch = (
-            f"topic {resolved} is published as {type_name}, but topic '{topic}' is declared "
+            f"topic {resolved} {seen}, but topic '{topic}' is declared "
             f"as {declaration.type_name}: the rules reading it ({', '.join(users)}) stay off"
         )
         return self._diagnostic(declaration, Severity.ERROR, mismatch, declaration.type_at)
