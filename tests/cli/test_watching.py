@@ -94,3 +94,61 @@ def test_a_counted_watch_ends_once_its_last_switch_is_reported() -> None:
     assert not watch.finished(1, now=3.5, wall=1002.9), "its switch is not reported yet"
     assert [r["event"] for r in watch.tick(wall=1003.0)] == ["applied"]
     assert watch.finished(1, now=3.6, wall=1003.0)
+
+
+def test_a_refusal_is_reported_and_a_newer_epoch_does_not_make_it_applied() -> None:
+    """Issue: epoch 1034, refused by both nodes, was printed `applied by all 2` once they
+    applied 1035 (an applied epoch at least as new counted)."""
+    watch = watch_with_two_nodes()
+    watch.state(5, [], "r", "", published=101.0, wall=101.0, now=2.0)
+    for node in ("/a", "/b"):
+        (refused, *rest) = watch.status(
+            node, 4, leaving=False, wall=101.01, now=2.0, failed_epoch=5, error="epoch 5: no"
+        )
+        assert refused == {"event": "refused", "epoch": 5, "node": node, "error": "epoch 5: no"}
+    (outcome,) = rest
+    assert outcome["event"] == "not-applied" and outcome["refused_by"] == ["/a", "/b"]
+    assert outcome["applied_by"] == []
+    watch.state(6, ["A"], "r", "", published=102.0, wall=102.0, now=3.0)
+    watch.status("/a", 6, leaving=False, wall=102.01, now=3.0, failed_epoch=5, error="epoch 5: no")
+    (applied,) = watch.status(
+        "/b", 6, leaving=False, wall=102.02, now=3.0, failed_epoch=5, error="epoch 5: no"
+    )
+    assert applied["event"] == "applied" and applied["epoch"] == 6
+
+
+def test_a_refusal_that_overtakes_its_state_is_reported_with_it() -> None:
+    watch = watch_with_two_nodes()
+    watch.status("/a", 4, leaving=False, wall=101.0, now=2.0, failed_epoch=5, error="epoch 5: x")
+    records = watch.state(5, [], "r", "", published=100.99, wall=101.01, now=2.0)
+    assert [r["event"] for r in records] == ["state", "refused"]
+
+
+def test_a_node_going_on_to_a_newer_epoch_skipped_the_one_it_never_applied() -> None:
+    watch = watch_with_two_nodes()
+    watch.state(5, ["A"], "r", "", published=101.0, wall=101.0, now=2.0)
+    watch.status("/a", 5, leaving=False, wall=101.0, now=2.0)
+    watch.state(6, ["B"], "r", "", published=101.1, wall=101.1, now=2.1)
+    records = watch.status("/b", 6, leaving=False, wall=101.2, now=2.2)
+    assert records[0] == {"event": "skipped", "epoch": 5, "node": "/b", "went_to": 6}
+    assert records[1]["event"] == "not-applied" and records[1]["skipped_by"] == ["/b"]
+    assert records[1]["applied_by"] == ["/a"]
+
+
+def test_the_registry_decides_who_is_live_with_the_nodes_they_host() -> None:
+    """The manager's liveness bound may be longer than 3 s, and it counts the nodes a
+    participant hosts: the watch counts the nodes the manager's registry lists."""
+    watch = SwitchWatch(started=100.0)
+    watch.state(1, [], "m", "", published=90.0, wall=100.0, now=0.0)
+    watch.status("/a", 1, leaving=False, wall=100.1, now=0.1, hosted=("/h",))
+    watch.status("/slow", 1, leaving=False, wall=100.1, now=0.1)
+    assert watch.registry({"/a": ("/h",), "/slow": ()}, asked=0.5, wall=100.6) == []
+    watch.state(2, ["A"], "r", "", published=105.0, wall=105.0, now=5.0)  # /slow silent 4.9 s
+    watch.status("/a", 2, leaving=False, wall=105.01, now=5.01, hosted=("/h",))
+    (applied,) = watch.status("/slow", 2, leaving=False, wall=105.02, now=5.02)
+    assert applied["nodes"] == 3 and applied["latency_ms"] == 20.0
+    watch.state(3, ["B"], "r", "", published=106.0, wall=106.0, now=6.0)
+    watch.status("/a", 3, leaving=False, wall=106.01, now=6.01, hosted=("/h",))
+    dropped, applied = watch.registry({"/a": ("/h",)}, asked=6.5, wall=106.6)
+    assert dropped == {"event": "node-left", "node": "/slow", "dropped": True}
+    assert applied["event"] == "applied" and applied["nodes"] == 2

@@ -616,38 +616,56 @@ def _watch(args: argparse.Namespace) -> int:
     from contextros.cli.watching import SwitchWatch
     from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, spin_nodes
     from contextros.ros.messages import stamp_to_seconds
+    from contextros.ros.registry_polling import RegistryPoller
+    from contextros.ros.topics import QUERY_SERVICE
 
     node = Node(f"contextros_watch_{os.getpid()}")
     watch = SwitchWatch(started=time.time())
 
-    def on_state(msg: Any) -> None:
-        records = watch.state(
-            msg.epoch,
-            list(msg.active_layers),
-            msg.requester,
-            msg.reason,
-            published=stamp_to_seconds(msg.stamp),
-            wall=time.time(),
-            now=time.monotonic(),
-        )
+    def show(records: list[dict[str, Any]]) -> None:
         for record in records:
             _print_watch(args.json, record)
+
+    def on_state(msg: Any) -> None:
+        show(
+            watch.state(
+                msg.epoch,
+                list(msg.active_layers),
+                msg.requester,
+                msg.reason,
+                published=stamp_to_seconds(msg.stamp),
+                wall=time.time(),
+                now=time.monotonic(),
+            )
+        )
 
     def on_status(msg: Any) -> None:
-        records = watch.status(
-            msg.node, msg.applied_epoch, msg.leaving, wall=time.time(), now=time.monotonic()
+        show(
+            watch.status(
+                msg.node,
+                msg.applied_epoch,
+                msg.leaving,
+                wall=time.time(),
+                now=time.monotonic(),
+                failed_epoch=msg.failed_epoch,
+                error=msg.error,
+                hosted=tuple(msg.hosted_nodes),
+            )
         )
-        for record in records:
-            _print_watch(args.json, record)
+
+    def on_registry(answer: Any, asked: float) -> None:
+        nodes = {p.node: tuple(p.hosted_nodes) for p in answer.participants}
+        show(watch.registry(nodes, asked, wall=time.time()))
 
     def on_tick() -> None:
-        for record in watch.tick(time.time()):
-            _print_watch(args.json, record)
+        show(watch.tick(time.time()))
         if output_gone():
             raise BrokenPipeError("the standard output's reader went away")
 
     node.create_subscription(LayerState, STATE_TOPIC, on_state, STATE_QOS)
     node.create_subscription(ParticipantStatus, STATUS_TOPIC, on_status, STATUS_QOS)
+    # The nodes the manager counts (its liveness bound, hosted nodes), twice a second.
+    RegistryPoller(node, QUERY_SERVICE, on_registry, period=0.5)
     node.create_timer(0.2, on_tick)
     spin_nodes(
         [node],
@@ -661,10 +679,15 @@ def _watch(args: argparse.Namespace) -> int:
 def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
     if as_json:
         print(json.dumps(record), flush=True)
-    elif record["event"] in ("node", "node-left"):
-        verb = "is here" if record["event"] == "node" else "left"
-        print(f"node {record['node']} {verb}", flush=True)
-    elif record["event"] in ("current", "state"):
+        return
+    event = record["event"]
+    epoch = f"epoch {record.get('epoch', 0):>6}"
+    if event == "node":
+        line = f"node {_shown(record['node'])} is here"
+    elif event == "node-left":
+        gone = "dropped by the manager" if record.get("dropped") else "left"
+        line = f"node {_shown(record['node'])} {gone}"
+    elif event in ("current", "state"):
         active = ", ".join(record["active"]) or "none"
         who = f"{record['requester'] or '?'}: {record['reason'] or '-'}"
         timing = (
@@ -672,10 +695,32 @@ def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
             if record["replayed"]
             else f"delivered in {record['delivery_ms']:.2f} ms"
         )
-        print(f"epoch {record['epoch']:>6}  [{active}]  ({who})  {timing}", flush=True)
-    else:
-        print(
-            f"epoch {record['epoch']:>6}  applied by all {record['nodes']} live node(s) "
-            f"{record['latency_ms']:.2f} ms after publication",
-            flush=True,
+        line = f"{epoch}  [{_shown(active)}]  ({_shown(who)})  {timing}"
+    elif event == "refused":  # as `contextros status` says it
+        line = (
+            f"{epoch}  REFUSED: {_shown(record['node'])} could not apply {_shown(record['error'])}"
         )
+    elif event == "skipped":
+        line = (
+            f"{epoch}  SKIPPED: {_shown(record['node'])} went on to epoch "
+            f"{record['went_to']} without applying it"
+        )
+    elif event == "not-applied":
+        parts = [
+            f"{verb} by {_shown(', '.join(record[key]))}"
+            for verb, key in (("refused", "refused_by"), ("skipped", "skipped_by"))
+            if record[key]
+        ]
+        parts.append(f"applied by {len(record['applied_by'])}")
+        line = f"{epoch}  NOT applied by all {record['nodes']} live node(s): {'; '.join(parts)}"
+    else:
+        line = (
+            f"{epoch}  applied by all {record['nodes']} live node(s) "
+            f"{record['latency_ms']:.2f} ms after publication"
+        )
+    print(line, flush=True)
+
+
+def _shown(text: str) -> str:
+    """Text from the network as a terminal line shows it: no control characters."""
+    return "".join(c if c.isprintable() else "?" for c in text)
