@@ -449,10 +449,7 @@ def _print_replay(
     for note in result.notes:
         print(f"note: {note}", file=sys.stderr)
     print(f"{args.recording}: {end - start:.1f} s replayed through {', '.join(args.rules)}")
-    events = [
-        (s.time, f"[{', '.join(s.active) or 'none'}]  {s.requester}: {s.reason}")
-        for s in result.switches
-    ]
+    events = [(s.time, f"[{', '.join(s.active) or 'none'}]  {s.cause}") for s in result.switches]
     events += [(r.time, f"rule {r.rule} could not {r.asked}: {r.message}") for r in result.refusals]
     for at, text in sorted(events, key=lambda event: event[0]):
         print(f"{at - start:9.3f} s  {text}")

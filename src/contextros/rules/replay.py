@@ -48,6 +48,11 @@ class Switch:
     requester: str  # "rule NAME", or who asked in the recording
     reason: str
 
+    @property
+    def cause(self) -> str:
+        """`requester: reason` as `watch` and `status` print it ('-' for no reason)."""
+        return f"{self.requester or '?'}: {self.reason or '-'}"
+
 
 @dataclass(frozen=True)
 class Refusal:
