@@ -9,6 +9,7 @@ from __future__ import annotations
 import contextlib
 import faulthandler
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -102,6 +103,8 @@ def spinning_in_thread(
     executor.add_node(node)
     stop = threading.Event()
 
+    ended = threading.Event()  # (an interrupted Thread.join may return early after it)
+
     def spin() -> None:
         try:
             while not stop.is_set() and rclpy.ok():
@@ -109,6 +112,8 @@ def spinning_in_thread(
         except (ExternalShutdownException, RCLError):
             if rclpy.ok():  # not a signal's shutdown: show it
                 raise
+        finally:
+            ended.set()
 
     spinner = threading.Thread(target=spin, name=name, daemon=True)
     spinner.start()
@@ -117,8 +122,23 @@ def spinning_in_thread(
     finally:
         stop.set()
         with bounded_teardown(teardown_limit):
+            interrupted = _wait_despite_signals(ended)
             spinner.join()
             executor.shutdown(timeout_sec=0.5)
+        if interrupted is not None and sys.exc_info()[1] is None:
+            raise interrupted  # (else the exception under way stands)
+
+
+def _wait_despite_signals(event: threading.Event) -> BaseException | None:
+    """Wait for `event` even through a stop signal's exception (a handler raising while
+    the main thread waits): the first such exception, once it is set."""
+    interrupted = None
+    while True:
+        try:
+            event.wait()
+            return interrupted
+        except BaseException as error:  # kept, raised once the event is set
+            interrupted = interrupted or error
 
 
 @contextlib.contextmanager
