@@ -296,6 +296,18 @@ def run_manager(args: argparse.Namespace) -> int:
             listed = error.render() if isinstance(error, LayerLanguageError) else str(error)
             print(f"contextros manager: the layer files have errors:\n{listed}", file=sys.stderr)
             return USAGE
+    if args.state_file is not None:
+        from contextros.ros.manager_node import StateFile
+
+        try:  # refused now rather than found out at the first state, silently
+            StateFile(args.state_file).check_writable()
+        except OSError as error:
+            print(
+                f"contextros manager: cannot write the state file {args.state_file}: "
+                f"{error.strerror or error}",
+                file=sys.stderr,
+            )
+            return USAGE
     try:
         with ros_session(args):
             try:
@@ -305,9 +317,16 @@ def run_manager(args: argparse.Namespace) -> int:
             except LayerError as error:
                 print(f"contextros manager: {error}", file=sys.stderr)
                 return FAILED
-            spin_nodes([node], lean=True, teardown_limit=TEARDOWN_LIMIT)
+            spin_nodes(
+                [node],
+                until=lambda: bool(node.stepped_down),
+                lean=True,
+                teardown_limit=TEARDOWN_LIMIT,
+            )
     except RosArgumentsError as error:
         return usage_error(error)
+    if node.stepped_down:  # another manager runs this namespace (the log said which)
+        return USAGE
     return 0
 
 

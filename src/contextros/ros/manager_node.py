@@ -97,16 +97,26 @@ class StateFile:
     def load(self) -> ManagerMemory | None:
         return ManagerMemory.read(self.path)
 
+    def check_writable(self) -> None:
+        """Raise OSError (naming the file and the reason) unless the file can be written:
+        its directory exists (it is not created: a mistyped path must not be) and takes
+        a new file."""
+        partial = self._partial()
+        partial.open("w", encoding="utf-8").close()
+        partial.unlink()
+
     def save(self, memory: ManagerMemory | LayerState) -> None:
         if isinstance(memory, LayerState):
             memory = ManagerMemory(memory)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
-        partial = self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        partial = self._partial()
         with partial.open("w", encoding="utf-8") as stream:
             stream.write(memory.to_json(wall_time=time.time()))
             stream.flush()
             os.fsync(stream.fileno())
         partial.replace(self.path)
+
+    def _partial(self) -> Path:
+        return self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
 
 
 class _DeferredResponses:
@@ -201,6 +211,19 @@ class LayerManagerNode(Node):
         self._proposal_pub = self.create_publisher(
             LayerStateMsg, PROPOSAL_TOPIC, PROPOSAL_QOS, event_callbacks=quiet
         )
+        # Another manager in this namespace: its states and heartbeats carry its id (see
+        # `_on_manager_message`). Why this one stepped down, once it did.
+        self.stepped_down = ""
+        self._rivals_logged: set[str] = set()
+        for topic, qos in ((STATE_TOPIC, STATE_QOS), (HEARTBEAT_TOPIC, HEARTBEAT_QOS)):
+            self.create_subscription(
+                LayerStateMsg,
+                topic,
+                self._on_manager_message,
+                qos,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+            )
+        self._save_error = ""  # the state file's last write error, logged once
         self._status_subscription = self.create_subscription(
             ParticipantStatus,
             STATUS_TOPIC,
@@ -280,6 +303,41 @@ class LayerManagerNode(Node):
         self._run(actions)
         if self._commands and not self._driving:  # an atomic vote or a held layer may be over
             self._next_command()
+
+    def _on_manager_message(self, msg: Any) -> None:
+        """A state or heartbeat of another live manager in this namespace: the two would
+        re-assert over each other's epochs without end. A manager still recovering (it
+        published no state yet) steps down before a running one; between two alike, the one
+        with the greater id. Stepping down ends the spin (`contextros manager` exits 2)."""
+        other = str(msg.manager_id)
+        if not other or other == self.manager_id or self.stepped_down:
+            return
+        other_recovering = msg.epoch == 0 and msg.reason == "recovering"
+        recovering = self.protocol.recovering
+        # A newcomer yields to a running manager; between two alike, the greater id yields.
+        steps_down = self.manager_id > other if recovering == other_recovering else recovering
+        where = f"namespace {self.get_namespace()}"
+        nodes = sorted(
+            {
+                f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                for info in self.get_publishers_info_by_topic(HEARTBEAT_TOPIC)
+            }
+        )
+        rival = (
+            f"another Layer manager is live in {where}: id {other} (process "
+            f"{other.split('-')[0]}; manager nodes {', '.join(nodes) or '?'})"
+        )
+        if steps_down:
+            self.stepped_down = (
+                f"{rival}; this manager ({self.manager_id}) "
+                f"{'did not start' if recovering else 'steps down (the greater id)'}: "
+                "two managers in one namespace would re-assert over each other's epochs. "
+                "Stop the other one, or give this one its own --namespace"
+            )
+            self.log.error(self.stepped_down)
+        elif other not in self._rivals_logged:
+            self._rivals_logged.add(other)
+            self.log.error(f"{rival}; it steps down, this manager ({self.manager_id}) stays")
 
     def _waiting_statuses(self, first: bytes) -> Iterator[bytes]:
         yield first
@@ -579,15 +637,25 @@ class LayerManagerNode(Node):
             return
         try:
             self.state_file.save(memory)
-            self._saved_memory = memory
         except OSError as error:
             # Keep switching: the participants still carry the epoch across a restart.
-            self.log.error(
-                f"state file {self.state_file.path} not written for epoch "
-                f"{memory.state.epoch}: {error}"
-            )
+            # Logged when writing starts failing (or fails otherwise), not at every state.
+            if str(error) != self._save_error:
+                self._save_error = str(error)
+                self.log.error(
+                    f"state file {self.state_file.path} not written (epoch "
+                    f"{memory.state.epoch}): {error}; the manager keeps running, a restart "
+                    "relies on the nodes' reports (logged again when this changes)"
+                )
+            return
+        self._saved_memory = memory
+        if self._save_error:
+            self._save_error = ""
+            self.log.info(f"state file {self.state_file.path} written again")
 
     def _run(self, actions: list[ManagerAction]) -> None:
+        if self.stepped_down:  # another manager runs this namespace: nothing goes out
+            return
         if self.state_file and any(isinstance(a, _DURABLE) for a in actions):
             self._save()
         for action in actions:

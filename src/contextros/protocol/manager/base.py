@@ -14,6 +14,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterable
+from dataclasses import replace
 
 from contextros.protocol.events import (
     ActivationCommand,
@@ -135,8 +136,10 @@ class ManagerBase(ABC):
         self._next_beat = now + self.settings.heartbeat_period
         if self.recovering:
             beat = LayerState(epoch=0, reason="recovering", manager_id=self.settings.manager_id)
-        else:
+        elif self._state.manager_id:
             beat = self._state
+        else:  # nothing published yet: still with its id, so another manager hears this one
+            beat = replace(self._state, manager_id=self.settings.manager_id)
         return [PublishHeartbeat(beat)]
 
     def _someone_lags(self) -> bool:
