@@ -149,7 +149,8 @@ class SwitchWatch:
             if known is not None and node in self.live_nodes(now):
                 records.append({"event": "node-left", "node": node})
             self._nodes.pop(node, None)
-            self._left[node] = now
+            if self._registry is not None:  # (without one, silence decides)
+                self._left[node] = now
             for waiting in self._waiting.values():
                 waiting.nodes.discard(node)
                 if node in waiting.pending:
