@@ -312,6 +312,8 @@ class LayerManagerNode(Node):
         other = str(msg.manager_id)
         if not other or other == self.manager_id or self.stepped_down:
             return
+        if len(other) > 64 or not other.isprintable():  # not a manager's id: not logged
+            return
         other_recovering = msg.epoch == 0 and msg.reason == "recovering"
         recovering = self.protocol.recovering
         # A newcomer yields to a running manager; between two alike, the greater id yields.
@@ -334,6 +336,7 @@ class LayerManagerNode(Node):
                 "two managers in one namespace would re-assert over each other's epochs. "
                 "Stop the other one, or give this one its own --namespace"
             )
+            self._flush_logs()  # the states it published, before it says why it stops
             self.log.error(self.stepped_down)
         elif other not in self._rivals_logged:
             self._rivals_logged.add(other)
