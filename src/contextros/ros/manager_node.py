@@ -361,6 +361,10 @@ class LayerManagerNode(Node):
                 f"the manager did not run for {stall:.1f} s: that time does not count as "
                 "the nodes' silence"
             )
+        if self.protocol.recovering and self.count_services(ACTIVATE_SERVICE) > 1:
+            # Another manager's service is in the graph (a graph query, microseconds):
+            # no first state before its state or heartbeat is heard (`_on_manager_message`).
+            self.protocol.prolong_recovery(now + 2 * self._tick_period)
         self._run(self.protocol.tick(now))
         if self.rules is not None:
             self.rules.tick()

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 from contextros.protocol import (
+    ManagerProtocol,
+    ManagerSettings,
     PublishHeartbeat,
 )
 from tests.protocol.manager.scenario import (
@@ -42,3 +44,12 @@ def test_no_repeat_once_every_node_has_the_state() -> None:
         if isinstance(a, PublishHeartbeat)
     ]
     assert beats == [1.56], "only the regular heartbeat, 0.25 s after the last one"
+
+
+def test_a_running_manager_that_published_nothing_beats_with_its_id() -> None:
+    # No state file, nobody heard: no state yet, but another manager must hear this one.
+    manager = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0, manager_id="m1"))
+    beats = [a for a in manager.tick(1.0) + manager.tick(1.3) if isinstance(a, PublishHeartbeat)]
+    assert states(manager.tick(1.31)) == []
+    assert beats and all(b.state.manager_id == "m1" for b in beats)
+    assert beats[-1].state.epoch == 0 and beats[-1].state.reason != "recovering"

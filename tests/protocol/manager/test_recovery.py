@@ -123,3 +123,15 @@ def test_a_manager_without_memory_numbers_its_first_state_well_above_what_it_hea
     with_file = ManagerProtocol(0.0, ManagerSettings(recovery_window=1.0), LayerState(10))
     with_file.receive_status(report("/a", 10, ("Night",)), 0.5)
     assert [s.epoch for s in states(with_file.tick(1.0))] == [11], "the file knows"
+
+
+def test_recovery_prolonged_while_another_manager_is_seen_ends_within_three_windows() -> None:
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a", 7, ("Night",)), 0.2)
+    for step in range(10, 40):  # the adapter sees another manager's service, unheard
+        now = step * 0.1
+        manager.prolong_recovery(now + 0.1)
+        if states(manager.tick(now)):
+            break
+    assert not manager.recovering
+    assert 3 * SETTINGS.recovery_window - 0.05 <= now <= 3 * SETTINGS.recovery_window + 0.1

@@ -48,6 +48,12 @@ class Recovery(ManagerBase):
         self._queued.clear()
         return actions
 
+    def prolong_recovery(self, until: float) -> None:
+        """Recover until `until` at least (within the limit of three windows): the adapter
+        sees another manager it has not heard yet, and must not publish before it does."""
+        if self._recovering_until is not None:
+            self._recovering_until = min(max(self._recovering_until, until), self._recovery_limit)
+
     def _is_ahead(self, report: ParticipantReport) -> bool:
         """The node applied a state this manager did not publish, numbered like ours or higher
         (this manager restarted without memory of it)."""
