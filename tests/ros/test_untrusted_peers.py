@@ -220,3 +220,29 @@ def test_a_safe_fallback_gives_way_to_the_applied_state_when_the_manager_is_back
         participant.close()
         node.destroy_node()
         set_active([])
+
+
+def test_a_forged_manager_heartbeat_does_not_make_the_manager_step_down(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """Another manager is one whose activate service the graph shows too: a heartbeat from
+    a process that offers none (any process may publish one) stops nothing."""
+    import rclpy
+    from contextros_interfaces.msg import LayerState
+
+    from contextros.ros.topics import HEARTBEAT_QOS, HEARTBEAT_TOPIC
+
+    system = start_system(processes, client, ["u3"])
+    before = client.query()
+    publisher = client.node.create_publisher(LayerState, HEARTBEAT_TOPIC, HEARTBEAT_QOS)
+    try:
+        for forged_id in ("0", "1-forged", "recovering"):
+            for _ in range(20):
+                publisher.publish(LayerState(epoch=before.epoch + 5, manager_id=forged_id))
+                rclpy.spin_once(client.node, timeout_sec=0.05)
+    finally:
+        client.node.destroy_publisher(publisher)
+    result = client.request(["Night"], synchronous=True, timeout=5)
+    assert result.success, result.message
+    assert system.manager.popen.poll() is None
+    assert "another Layer manager" not in system.manager.output()

@@ -314,6 +314,10 @@ class LayerManagerNode(Node):
             return
         if len(other) > 64 or not other.isprintable():  # not a manager's id: not logged
             return
+        if self.count_services(ACTIVATE_SERVICE) < 2:
+            # No second manager's service in the graph: a message alone (any process may
+            # publish one) is no manager; heard again once discovery shows its service.
+            return
         other_recovering = msg.epoch == 0 and msg.reason == "recovering"
         recovering = self.protocol.recovering
         # A newcomer yields to a running manager; between two alike, the greater id yields.
