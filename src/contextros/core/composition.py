@@ -7,6 +7,7 @@ configuration), so the runtime imports this module and never the other way round
 
 from __future__ import annotations
 
+import importlib
 import inspect
 import os
 import warnings
@@ -49,8 +50,8 @@ def _finder_type() -> Any:
     dispatchers are then pure Python."""
     if os.environ.get("CONTEXTROS_PURE_PYTHON", "") not in ("", "0"):
         return None
-    try:
-        import contextros.core._dispatch as _dispatch
+    try:  # by its full name, not through contextros.core's namespace (an import circle)
+        _dispatch = importlib.import_module("contextros.core._dispatch")
     except ImportError:
         return None
     if getattr(_dispatch, "ABI", None) != _ABI:
