@@ -59,7 +59,15 @@ def test_a_synchronous_answer_after_a_restart_waits_for_the_nodes_known_before(
     try:
         # A node known before the restart gets the liveness bound (5 s) to report again.
         restart_manager(processes, state_file, liveness="5.0")
-        wait_registry(client, lambda r: r.epoch > before.epoch and not r.recovering)
+        # /k1 reported to the new manager (its layers are known again), /k2 cannot.
+        wait_registry(
+            client,
+            lambda r: (
+                r.epoch > before.epoch
+                and not r.recovering
+                and any(p.node == "/k1" and "Night" in p.layers for p in r.participants)
+            ),
+        )
         future = client.request_async(["Night"], synchronous=True, timeout=4)
         time.sleep(0.3)
     finally:
