@@ -41,17 +41,20 @@ def test_a_command_waiting_past_its_timeout_is_refused_never_executed(
     before = settle(client, "Indoor")
     system.manager.signal(signal.SIGKILL)
     system.manager.wait_exit()
-    # The new manager listens 5 s before deciding anything: the command waits meanwhile.
-    processes.manager("--liveness-timeout", LIVENESS, "--recovery-window", "5", name="m2")
+    # The new manager listens 10 s before deciding anything: the command waits meanwhile
+    # (the window outlasts the discovery of the new manager on a loaded machine).
+    launched = time.monotonic()
+    processes.manager("--liveness-timeout", LIVENESS, "--recovery-window", "10", name="m2")
     client.wait_for_manager(15.0)
     assert client.query().recovering
+    assert time.monotonic() - launched < 8.0, "the manager was found too late to test this"
     started = time.monotonic()
     result = client.request(["Night"], synchronous=True, timeout=1)
     took = time.monotonic() - started
     assert not result.success, result.message
     assert "not started within the command's timeout (1 s)" in result.message, result.message
     assert took < 1 + REPLY_MARGIN, f"took {took:.1f} s"
-    recovered = wait_registry(client, lambda r: not r.recovering, what="recovery")
+    recovered = wait_registry(client, lambda r: not r.recovering, 15.0, what="recovery")
     time.sleep(0.3)
     after = client.query()
     assert "Night" not in after.active_layers, f"executed after its caller gave up: {after}"
