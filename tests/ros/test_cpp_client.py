@@ -43,8 +43,13 @@ def ask(child: Child, line: str, timeout: float = 15.0) -> dict[str, Any]:
 
 
 def both_on_the_current_state(registry: Any) -> bool:
-    return len(registry.participants) == 2 and all(
-        p.applied_epoch == registry.epoch for p in registry.participants
+    """Both nodes applied the manager's state: its first one at least (before it, every
+    epoch is 0 and the first state may still come)."""
+    return (
+        not registry.recovering
+        and registry.epoch >= 1
+        and len(registry.participants) == 2
+        and all(p.applied_epoch == registry.epoch for p in registry.participants)
     )
 
 
