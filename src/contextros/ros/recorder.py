@@ -32,11 +32,24 @@ from contextros.ros.topics import (
     STATUS_TOPIC,
 )
 
+
+def _deep(qos: QoSProfile) -> QoSProfile:
+    """`qos` with a reader history deep enough that a recorder that falls behind (a loaded
+    machine) loses no sample: the state topic keeps only the last one, and two states a
+    few ms apart would otherwise leave one in the recording."""
+    return QoSProfile(
+        history=qos.history,
+        depth=max(qos.depth, 1000),
+        reliability=qos.reliability,
+        durability=qos.durability,
+    )
+
+
 PROTOCOL_TOPICS: dict[str, QoSProfile] = {
-    STATE_TOPIC: STATE_QOS,  # transient local: the current state arrives at once
-    HEARTBEAT_TOPIC: HEARTBEAT_QOS,
-    STATUS_TOPIC: STATUS_QOS,
-    PROPOSAL_TOPIC: PROPOSAL_QOS,
+    STATE_TOPIC: _deep(STATE_QOS),  # transient local: the current state arrives at once
+    HEARTBEAT_TOPIC: _deep(HEARTBEAT_QOS),
+    STATUS_TOPIC: _deep(STATUS_QOS),
+    PROPOSAL_TOPIC: _deep(PROPOSAL_QOS),
 }
 
 
