@@ -152,3 +152,23 @@ def test_the_registry_decides_who_is_live_with_the_nodes_they_host() -> None:
     dropped, applied = watch.registry({"/a": ("/h",)}, asked=6.5, wall=106.6)
     assert dropped == {"event": "node-left", "node": "/slow", "dropped": True}
     assert applied["event"] == "applied" and applied["nodes"] == 2
+
+
+def test_a_counted_watch_waits_the_liveness_bound_then_names_who_never_answered() -> None:
+    """CI: under load one node's status came more than 2 s after the switch, and the watch
+    ended without a word on it. It waits as long as the manager would, then says who."""
+    watch = watch_with_two_nodes()  # both heard at now=1.0
+    watch.state(5, ["Night"], "r", "", published=101.0, wall=101.0, now=3.5)
+    watch.status("/a", 5, leaving=False, wall=101.01, now=3.5)
+    watch.status("/b", 4, leaving=False, wall=101.4, now=3.9)  # a heartbeat, still on 4
+    assert not watch.finished(1, now=3.5 + 2.1, wall=103.1)
+    records = watch.status("/b", 5, leaving=False, wall=103.2, now=5.7)
+    assert [r["event"] for r in records] == ["applied"]
+    assert watch.finished(1, now=5.7, wall=103.2)
+
+    watch = watch_with_two_nodes()
+    watch.state(5, ["Night"], "r", "", published=101.0, wall=101.0, now=3.5)
+    watch.status("/a", 5, leaving=False, wall=101.01, now=3.5)
+    assert watch.finished(1, now=3.5 + watch.liveness + 1.1, wall=106.0)
+    assert watch.unsettled() == [{"event": "unsettled", "epoch": 5, "nodes": 2, "pending": ["/b"]}]
+    assert watch.unsettled() == []

@@ -686,12 +686,13 @@ def _watch(args: argparse.Namespace) -> int:
     # The nodes the manager counts (its liveness bound, hosted nodes), twice a second.
     RegistryPoller(node, QUERY_SERVICE, on_registry, period=0.5)
     node.create_timer(0.2, on_tick)
-    spin_nodes(
-        [node],
-        until=lambda: watch.finished(args.count, time.monotonic(), time.time()),
-        timeout=args.duration,
-        teardown_limit=TEARDOWN_LIMIT,
-    )
+    def finished() -> bool:
+        if not watch.finished(args.count, time.monotonic(), time.time()):
+            return False
+        show(watch.unsettled())
+        return True
+
+    spin_nodes([node], until=finished, timeout=args.duration, teardown_limit=TEARDOWN_LIMIT)
     return 0
 
 
@@ -732,6 +733,11 @@ def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
         ]
         parts.append(f"applied by {len(record['applied_by'])}")
         line = f"{epoch}  NOT applied by all {record['nodes']} live node(s): {'; '.join(parts)}"
+    elif event == "unsettled":
+        line = (
+            f"{epoch}  NOT settled when the watch ended: no word from "
+            f"{_shown(', '.join(record['pending']))} of {record['nodes']} live node(s)"
+        )
     else:
         line = (
             f"{epoch}  applied by all {record['nodes']} live node(s) "

@@ -47,6 +47,10 @@ class _Epoch:
     skipped: dict[str, int] = field(default_factory=dict)  # node: the epoch it went to
 
 
+# After the liveness bound, the time for one more registry answer (polled twice a second).
+UNSETTLED_GRACE = 1.0
+
+
 @dataclass
 class SwitchWatch:
     """Follows the layer states, the participants' statuses and the manager's registry.
@@ -286,4 +290,22 @@ class SwitchWatch:
             return False
         if any(not waiting.pending for waiting in self._waiting.values()):
             return False  # settled: `tick` reports it first
-        return now - self.last_switch > 2.0
+        # A live node reports within the liveness bound, or the manager drops it (and the
+        # registry says so): past that (and a poll), `unsettled` names who never answered.
+        return now - self.last_switch > self.liveness + UNSETTLED_GRACE
+
+    def unsettled(self) -> list[Record]:
+        """The switches still waiting when a counted watch ends, with the nodes not heard
+        applying them (call it once `finished` said so)."""
+        records: list[Record] = []
+        for epoch in sorted(self._waiting):
+            waiting = self._waiting.pop(epoch)
+            records.append(
+                {
+                    "event": "unsettled",
+                    "epoch": epoch,
+                    "nodes": len(self._names(waiting.nodes)),
+                    "pending": sorted(self._names(waiting.pending)),
+                }
+            )
+        return records
