@@ -155,7 +155,7 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
     the command) on a 50 Hz topic whose messages carry their send time, each SIGKILLed at
     its own random moment: 4 within 0.3 s of subscribing, 16 up to 2.5 s after all their
     files held a message. Each file reads (the truncation reported), holds the topic's
-    schema, and holds the messages up to one second before the kill; repaired, the
+    schema, and holds the messages it took up to one second before the kill; repaired, the
     upstream mcap reader reads it whole."""
     from mcap.reader import make_reader
     from std_msgs.msg import Float64
@@ -207,7 +207,8 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
     for index, recorder in enumerate(recorders):
         assert recorder.killed_at is not None, recorder.log.read_text()
         damages: list[Damage] = []
-        sent = [m.message.data for m in read_recording(recorder.output, truncated=damages.append)]
+        kept = list(read_recording(recorder.output, truncated=damages.append))
+        sent = [m.message.data for m in kept]
         where = f"recorder {index} ({recorder.offset:.2f} s, early: {recorder.early}): {damages}"
         assert len(damages) == 1 and "truncated" in str(damages[0]), where
         repaired = tmp_path / f"{index}.repaired.mcap"
@@ -220,10 +221,12 @@ def test_a_recorder_killed_at_20_random_moments_loses_at_most_its_last_second(
         if recorder.early:
             continue
         assert sent, where
-        # At most the last second before the kill lost (a best-effort topic may drop a
-        # message on the way: not counted here).
-        lost = recorder.killed_at - sent[-1]
-        assert lost <= 1.0, f"{where}: the last {lost:.2f} s lost"
+        # At most the last second before the kill lost: of what the recorder took, by its
+        # log times (on a loaded machine, a recorder waiting for a core takes a message
+        # seconds after its send time; a best-effort topic may drop one on the way).
+        lost = recorder.killed_at - kept[-1].time
+        lag = kept[-1].time - sent[-1]
+        assert lost <= 1.0, f"{where}: the last {lost:.2f} s lost (taken {lag:.2f} s after sent)"
 
 
 class KilledRecorder:
