@@ -32,7 +32,7 @@ def start_system(
     manager = group.manager("--liveness-timeout", LIVENESS, *manager_args)
     for child in participants.values():
         child.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
-    client.wait_for_manager(15.0)
+    wait_for_manager(client, manager)
     wanted = {f"/{name}" for name in names}
     wait_registry(
         client,
@@ -40,6 +40,17 @@ def start_system(
         what=f"participants {sorted(wanted)} registered",
     )
     return RunningSystem(manager, participants)
+
+
+def wait_for_manager(client: LayerClient, manager: Child, timeout: float = 15.0) -> None:
+    """`client.wait_for_manager`, failing with what the manager process printed (and its
+    exit status, if it ended)."""
+    try:
+        client.wait_for_manager(timeout)
+    except ManagerError as error:
+        ended = manager.popen.poll()
+        how = "still running" if ended is None else f"exit status {ended}"
+        raise AssertionError(f"{error}; the manager ({how}) printed:\n{manager.output()}") from None
 
 
 def wait_registry(

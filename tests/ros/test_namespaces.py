@@ -12,7 +12,7 @@ from rclpy.node import Node
 
 from contextros.ros import LayerClient
 from tests.ros.processes import PARTICIPANT_SCRIPT, Child, ProcessGroup
-from tests.ros.system import LIVENESS, wait_registry
+from tests.ros.system import LIVENESS, wait_for_manager, wait_registry
 from tests.ros.test_cli import contextros
 
 ROBOTS = ("/robot1", "/robot2")
@@ -48,7 +48,7 @@ def robots(client: LayerClient) -> Iterator[dict[str, Robot]]:
             clients.append(node)
             robots[namespace] = Robot(namespace, manager, nodes, LayerClient(node, "pytest"))
         for robot in robots.values():
-            robot.client.wait_for_manager(15.0)
+            wait_for_manager(robot.client, robot.manager)
             wanted = {f"{robot.namespace}/p1", f"{robot.namespace}/p2"}
             wait_registry(
                 robot.client,
