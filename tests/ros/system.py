@@ -54,8 +54,14 @@ def wait_for_manager(client: LayerClient, manager: Child, timeout: float = 15.0)
 
 
 def wait_registry(
-    client: LayerClient, predicate: Callable[[Any], bool], timeout: float = 10.0, what: str = ""
+    client: LayerClient,
+    predicate: Callable[[Any], bool],
+    timeout: float = 10.0,
+    what: str = "",
+    show: Sequence[Child] = (),
 ) -> Any:
+    """The registry once `predicate` holds; on a timeout, fails with it and the last lines
+    the processes `show` printed."""
     deadline = time.monotonic() + timeout
     while True:
         try:
@@ -72,6 +78,10 @@ def wait_registry(
                 f"timed out waiting for {what}: epoch {registry.epoch}, "
                 f"active {list(registry.active_layers)}, participants {nodes}, "
                 f"manager {registry.manager_id} (recovering: {registry.recovering})"
+                + "".join(
+                    f"\n--- {child.name} printed:\n" + "\n".join(child.lines[-20:])
+                    for child in show
+                )
             )
         time.sleep(0.05)
 

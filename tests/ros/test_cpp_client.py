@@ -14,7 +14,7 @@ from typing import Any
 
 from contextros.ros import LayerClient
 from tests.ros.processes import HERE, Child, ProcessGroup
-from tests.ros.system import LIVENESS, start_system, wait_registry
+from tests.ros.system import LIVENESS, start_system, wait_for_manager, wait_registry
 
 CPP_CLIENT = HERE.parent.parent / "build/cpp/ros/contextros_test_client"
 
@@ -53,7 +53,12 @@ def test_the_cpp_client_switches_a_python_and_a_cpp_node(
 ) -> None:
     cpp_node = processes.cpp_participant("cxx")
     system = start_system(processes, client, ["py"])
-    wait_registry(client, both_on_the_current_state, what="both participants")
+    wait_registry(
+        client,
+        both_on_the_current_state,
+        what="both participants",
+        show=[cpp_node, system.manager],
+    )
     cxx_client = cpp_client(processes)
     assert ask(cxx_client, "wait 15")["event"] == "manager"
 
@@ -92,9 +97,14 @@ def test_the_cpp_client_switches_a_python_and_a_cpp_node(
 def test_the_cpp_client_reports_vetoes_refusals_and_expectations(
     client: LayerClient, processes: ProcessGroup
 ) -> None:
-    processes.cpp_participant("cxx")
-    start_system(processes, client, ["voter"], "--default-timeout", "5")
-    wait_registry(client, both_on_the_current_state, what="both participants")
+    cpp_node = processes.cpp_participant("cxx")
+    system = start_system(processes, client, ["voter"], "--default-timeout", "5")
+    wait_registry(
+        client,
+        both_on_the_current_state,
+        what="both participants",
+        show=[cpp_node, system.manager],
+    )
     before = client.query().epoch
     cxx_client = cpp_client(processes)
     ask(cxx_client, "wait 15")
@@ -128,9 +138,14 @@ def test_an_atomic_command_vetoed_by_a_python_node_changes_no_node(
 ) -> None:
     cpp_node = processes.cpp_participant("cxx")
     processes.participant("vetoer", "--veto", "docking")
-    processes.manager("--liveness-timeout", LIVENESS)
-    client.wait_for_manager(15.0)
-    wait_registry(client, both_on_the_current_state, what="the C++ node and the vetoer")
+    manager = processes.manager("--liveness-timeout", LIVENESS)
+    wait_for_manager(client, manager)
+    wait_registry(
+        client,
+        both_on_the_current_state,
+        what="the C++ node and the vetoer",
+        show=[cpp_node, manager],
+    )
     cxx_client = cpp_client(processes)
     ask(cxx_client, "wait 15")
     started = time.monotonic()
