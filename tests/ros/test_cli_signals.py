@@ -298,9 +298,11 @@ def test_options_go_before_or_after_the_command() -> None:
             if not action.option_strings or action.option_strings[0] in ("-h", "--help"):
                 continue
             option = action.option_strings[-1]
-            values = [] if action.nargs == 0 else ["/robot1"]
-            before = options_after_command(parser, [option, *values, *words])
-            assert before == [*words, option, *values], name
+            # (a value may be a command's name: `--reason status activate X`)
+            for value in ("/robot1", "status"):
+                values = [] if action.nargs == 0 else [value]
+                before = options_after_command(parser, [option, *values, *words])
+                assert before == [*words, option, *values], (name, option, value)
 
 
 def test_namespace_before_the_command_reaches_the_manager(environment: dict[str, str]) -> None:

@@ -63,10 +63,26 @@ def options_after_command(parser: argparse.ArgumentParser, argv: Sequence[str]) 
     """`argv` with the options given before the command moved after it, where argparse
     looks for them: `contextros --namespace /robot1 status` is `contextros status
     --namespace /robot1` (the parser's own options, --version, --help, stay first)."""
-    names = {name.split()[0] for name in subcommands(parser)}
+    commands = subcommands(parser)
+    names = {name.split()[0] for name in commands}
     own = {option for action in parser._actions for option in action.option_strings}
+    # Options taking a value: a value that is a command's name (`--requester status`) is
+    # not the command.
+    valued = {
+        option
+        for command_parser in (parser, *commands.values())
+        for action in command_parser._actions
+        if action.nargs != 0
+        for option in action.option_strings
+    }
     words = list(argv)
-    command = next((i for i, word in enumerate(words) if word in names), None)
+    command, index = None, 0
+    while index < len(words):
+        word = words[index]
+        if word in names:
+            command = index
+            break
+        index += 2 if word in valued else 1
     if command is None:
         return words
     before = words[:command]
