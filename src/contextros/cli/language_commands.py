@@ -1,4 +1,4 @@
-"""`contextros compile` and `contextros check`: the language part's subcommands."""
+"""`contextros compile`, `check` and `import-modes`: the language part's subcommands."""
 
 from __future__ import annotations
 
@@ -76,6 +76,21 @@ def register(commands: Any) -> None:
         "against another file's topic declaration",
     )
     check_parser.set_defaults(run=run_check)
+
+    import_parser = commands.add_parser(
+        "import-modes",
+        help="turn a system_modes model file into a layer file",
+        description="Translate a system_modes model (systems, parts, modes with parameters "
+        "and lifecycle states, rules) into a layer file that behaves the same: a layer per "
+        "mode, a group per system or node, 'implies' for a system mode's parts "
+        "(docs/ros-integration.md). What cannot be converted exactly is a warning on stderr "
+        "and a comment in the output; an error (MODEL.yaml:line:col) writes nothing, exit 2.",
+    )
+    import_parser.add_argument("model", metavar="MODEL.yaml", help="the system_modes model")
+    import_parser.add_argument(
+        "-o", "--output", metavar="FILE", help="the layer file to write (default: stdout)"
+    )
+    import_parser.set_defaults(run=run_import_modes)
 
 
 _KINDS = {".py": "a Python module", ".cpp": "C++ source", ".hpp": "a C++ header", ".h": "a header"}
@@ -220,3 +235,33 @@ def _write_if_changed(path: Path, text: str) -> None:
     except (OSError, UnicodeDecodeError):
         pass
     path.write_text(text, encoding="utf-8")
+
+
+def run_import_modes(args: argparse.Namespace) -> int:
+    from contextros.language.system_modes import ModesModelError, import_modes
+
+    try:
+        source = Path(args.model).read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as error:
+        print(f"{args.model}:1:1: error: cannot read the model: {error}", file=sys.stderr)
+        return 2
+    try:
+        imported = import_modes(source, args.model)
+    except ModesModelError as error:
+        print(error.render(), file=sys.stderr)
+        print("contextros import-modes: nothing written", file=sys.stderr)
+        return 2
+    except ImportError as error:
+        print(f"contextros import-modes: reading YAML needs PyYAML ({error})", file=sys.stderr)
+        return 2
+    for warning in imported.warnings:
+        print(warning.render(), file=sys.stderr)
+    if args.output in (None, "-"):
+        sys.stdout.write(imported.text)
+        return 0
+    try:
+        Path(args.output).write_text(imported.text, encoding="utf-8")
+    except OSError as error:
+        print(f"contextros import-modes: cannot write {args.output}: {error}", file=sys.stderr)
+        return 1
+    return 0
