@@ -24,10 +24,16 @@ class ReusesEpochs(ManagerProtocol):
     """Publishes every new configuration under the epoch it has already."""
 
     def _publish(
-        self, active: tuple[str, ...], requester: str, reason: str, now: float, above: int
+        self,
+        active: tuple[str, ...],
+        requester: str,
+        reason: str,
+        now: float,
+        above: int,
+        explicit: tuple[str, ...] | None = None,
     ) -> PublishState:
         epoch = self._state.epoch
-        published = super()._publish(active, requester, reason, now, above)
+        published = super()._publish(active, requester, reason, now, above, explicit)
         if not epoch:
             return published
         self._state = dataclasses.replace(self._state, epoch=epoch)

@@ -1,8 +1,9 @@
 """Layer declarations as participants announce them, and the relation check the manager runs.
 
 The manager knows no layer by itself: it learns layers and their relations (excludes,
-requires, group) from the participants, and validates every activation against the union
-of what they declared, so a node cannot be asked for a configuration another node forbids.
+requires, group, after, implies) from the participants, and validates every activation
+against the union of what they declared, so a node cannot be asked for a configuration
+another node forbids.
 """
 
 from __future__ import annotations
@@ -21,6 +22,8 @@ class LayerDeclaration:
     group: str = ""
     # Layers this one comes after (outside) when both are active (`layer X after B`).
     after: frozenset[str] = frozenset()
+    # Layers active whenever this one is, brought in and taken out with it (`implies`).
+    implies: frozenset[str] = frozenset()
 
     def merged(self, other: LayerDeclaration) -> LayerDeclaration:
         """The union of two nodes' declarations of one layer (the stricter reading)."""
@@ -31,6 +34,7 @@ class LayerDeclaration:
             requires=self.requires | other.requires,
             group=",".join(groups),
             after=self.after | other.after,
+            implies=self.implies | other.implies,
         )
 
     @property
@@ -92,6 +96,149 @@ def relation_violations(
 def _excludes_of(name: str, declarations: Mapping[str, LayerDeclaration]) -> frozenset[str]:
     declaration = declarations.get(name)
     return declaration.excludes if declaration else frozenset()
+
+
+def implied_layers(name: str, declarations: Mapping[str, LayerDeclaration]) -> tuple[str, ...]:
+    """What `name` implies, transitively, in activation order: each implied layer before the
+    layer implying it, depth first, by name (`name` itself not included, cycles cut)."""
+    found: list[str] = []
+    visiting = {name}
+
+    def visit(layer: str) -> None:
+        declaration = declarations.get(layer)
+        for implied in sorted(declaration.implies) if declaration else ():
+            if implied not in visiting:
+                visiting.add(implied)
+                visit(implied)
+                found.append(implied)
+
+    visit(name)
+    return tuple(found)
+
+
+def with_implied(
+    explicit: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> tuple[str, ...]:
+    """The layers `explicit` make active: each with what it implies just before it."""
+    layers: dict[str, None] = {}
+    for name in explicit:
+        layers.update(dict.fromkeys((*implied_layers(name, declarations), name)))
+    return tuple(layers)
+
+
+def implied_by(
+    active: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> dict[str, tuple[str, ...]]:
+    """For each layer of `active` that another active layer implies, those layers (directly
+    implying it), by name: `{"Propulsion": ("Flight",)}`."""
+    active_set = set(active)
+    found: dict[str, list[str]] = {}
+    for name in sorted(active_set):
+        declaration = declarations.get(name)
+        for implied in sorted(declaration.implies & active_set) if declaration else ():
+            if implied != name:
+                found.setdefault(implied, []).append(name)
+    return {name: tuple(by) for name, by in sorted(found.items())}
+
+
+def implication_problems(name: str, declarations: Mapping[str, LayerDeclaration]) -> list[str]:
+    """Why `name` cannot be active with what it implies: an `implies` cycle among them, two
+    of them in one exclusive group, or one excluding another. Sentences naming the layers,
+    each said of the innermost layer implying both (`Flight implies CameraHigh and
+    CameraLow, ...` when Mission implies Flight)."""
+    implied = implied_layers(name, declarations)
+    members = (name, *implied)
+    problems: list[str] = []
+    cycle = sorted(m for m in members if _on_a_cycle(m, declarations))
+    if cycle:
+        problems.append(f"the declared 'implies' of {', '.join(cycle)} form a cycle")
+        return problems
+    brings = {m: {m, *implied_layers(m, declarations)} for m in members}
+
+    def pair(a: str, b: str) -> str:
+        # `implied` lists the deeper layers first: the innermost one bringing both.
+        by = next(m for m in (*implied, name) if {a, b} <= brings[m])
+        a, b = sorted((a, b)) if by not in (a, b) else (by, b if a == by else a)
+        return f"{by} implies {b}" if a == by else f"{by} implies {a} and {b}"
+
+    for index, a in enumerate(members):
+        groups_a = _declaration(a, declarations).groups
+        excludes_a = _declaration(a, declarations).excludes
+        for b in members[index + 1 :]:
+            shared = sorted(groups_a & _declaration(b, declarations).groups)
+            if shared:
+                problems.append(f"{pair(a, b)}, both in exclusive group {shared[0]!r}")
+            elif b in excludes_a:
+                problems.append(f"{pair(a, b)}, and {a} excludes {b}")
+            elif a in _declaration(b, declarations).excludes:
+                problems.append(f"{pair(a, b)}, and {b} excludes {a}")
+    return list(dict.fromkeys(problems))
+
+
+def _on_a_cycle(name: str, declarations: Mapping[str, LayerDeclaration]) -> bool:
+    direct = _declaration(name, declarations).implies
+    return any(d == name or name in implied_layers(d, declarations) for d in direct)
+
+
+def _declaration(name: str, declarations: Mapping[str, LayerDeclaration]) -> LayerDeclaration:
+    return declarations.get(name) or LayerDeclaration(name)
+
+
+@dataclass(frozen=True)
+class Switched:
+    """A configuration after a switch, before it is ordered: the active layers (implied
+    ones included) and those asked for explicitly (the rest is there because implied)."""
+
+    layers: tuple[str, ...]
+    explicit: tuple[str, ...]
+
+
+def switched(
+    active: Iterable[str],
+    explicit: Iterable[str],
+    activate: Iterable[str],
+    deactivate: Iterable[str],
+    declarations: Mapping[str, LayerDeclaration],
+) -> Switched:
+    """As the core's `switch`: deactivate, then activate; an active layer keeps its place, a
+    new one becomes outermost (what it implies just inside it), and activating a group member
+    (implied or not) drops the others. What no explicitly asked layer implies any more
+    leaves; what one implies and is missing comes back (a contradiction the checks report)."""
+    off = set(deactivate)
+    asked = [name for name in explicit if name not in off]
+    layers = [name for name in active if name not in off]
+    for name in dict.fromkeys(activate):
+        for member in (*implied_layers(name, declarations), name):
+            groups = _declaration(member, declarations).groups
+            if groups:
+                rivals = {
+                    other
+                    for other in layers
+                    if other != member and _declaration(other, declarations).groups & groups
+                }
+                layers = [other for other in layers if other not in rivals]
+                asked = [other for other in asked if other not in rivals]
+            if member not in layers:
+                layers.append(member)
+        if name not in asked:
+            asked.append(name)
+    position = {name: index for index, name in enumerate(layers)}
+    asked.sort(key=lambda name: position.get(name, len(position)))
+    wanted = with_implied(asked, declarations)
+    wanted_set = set(wanted)
+    kept = [name for name in layers if name in wanted_set]
+    kept += [name for name in wanted if name not in position]
+    return Switched(tuple(kept), tuple(asked))
+
+
+def explicit_roots(
+    active: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> tuple[str, ...]:
+    """The layers of `active` no other active layer implies: what was asked for explicitly,
+    as far as the configuration alone tells (a manager that recovered it from a node)."""
+    active = tuple(active)
+    implied = implied_by(active, declarations)
+    return tuple(name for name in active if name not in implied)
 
 
 @dataclass(frozen=True)

@@ -100,12 +100,16 @@ class KnownParticipant:
 class ManagerMemory:
     """What a manager with a state file keeps across a crash: its last published state,
     the highest epoch it ever proposed (an atomic vote's epoch is never reused, even when
-    the crash came before the commit) and the participants it knew live. The adapter
-    writes it before anything that changes it goes on the wire (docs/protocol.md)."""
+    the crash came before the commit), the participants it knew live, and which active
+    layers were asked for explicitly (the others are active because implied: deactivating
+    what implied them takes them out). The adapter writes it before anything that changes
+    it goes on the wire (docs/protocol.md)."""
 
     state: LayerState
     proposed_epoch: int = 0
     participants: tuple[KnownParticipant, ...] = ()
+    # None: not recorded (a file written before `implies`): every active layer was asked.
+    explicit: tuple[str, ...] | None = None
 
     def to_json(self, wall_time: float | None = None) -> str:
         data = json.loads(self.state.to_json(wall_time))
@@ -114,12 +118,15 @@ class ManagerMemory:
             {"node": p.node, "incarnation": p.incarnation, "hosted": list(p.hosted)}
             for p in self.participants
         ]
+        if self.explicit is not None:
+            data["explicit"] = list(self.explicit)
         return json.dumps(data, indent=2)
 
     @classmethod
     def from_json(cls, text: str, source: str = "<state>") -> ManagerMemory:
-        """Parse a state file (one written before `proposed_epoch` and `participants`
-        existed reads as none of either); a damaged file is an error naming what is wrong."""
+        """Parse a state file (one written before `proposed_epoch`, `participants` and
+        `explicit` existed reads as none of them); a damaged file is an error naming what
+        is wrong."""
         data = _json_object(text, source)
         state = LayerState._from_fields(data, source)
         proposed = data.get("proposed_epoch", 0)
@@ -132,7 +139,17 @@ class ManagerMemory:
         entries = data.get("participants", [])
         if not isinstance(entries, list):
             raise _damaged(source, f"field 'participants' must be a list, not {_shown(entries)}")
-        return cls(state, proposed, tuple(_participant(e, source) for e in entries))
+        explicit = data.get("explicit")
+        if explicit is not None and (
+            not isinstance(explicit, list)
+            or not all(isinstance(n, str) and n in state.active for n in explicit)
+        ):
+            raise _damaged(
+                source,
+                f"field 'explicit' must list active layers, not {_shown(explicit)}",
+            )
+        participants = tuple(_participant(e, source) for e in entries)
+        return cls(state, proposed, participants, None if explicit is None else tuple(explicit))
 
     @classmethod
     def read(cls, path: Path) -> ManagerMemory | None:

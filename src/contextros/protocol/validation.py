@@ -20,7 +20,7 @@ from contextros.protocol.state import MAX_EPOCH, LayerState
 MAX_NAME_LENGTH = 128  # a layer or group name
 MAX_NODE_NAME_LENGTH = 256  # a fully qualified ROS node name
 MAX_LAYERS = 256  # layers a participant implements, or names in one command or state
-MAX_RELATIONS = 64  # excludes/requires/after of one layer
+MAX_RELATIONS = 64  # excludes/requires/after/implies of one layer
 MAX_HOSTED = 256  # nodes one participant speaks for
 MAX_EXPECTED = 1024  # nodes a command expects to reach
 MAX_TOKEN_LENGTH = 64  # incarnation, manager id
@@ -90,6 +90,7 @@ def declaration_problems(declaration: LayerDeclaration) -> list[str]:
     problems += _names_problems(declaration.excludes, f"{where} excludes", MAX_RELATIONS)
     problems += _names_problems(declaration.requires, f"{where} requires", MAX_RELATIONS)
     problems += _names_problems(declaration.after, f"{where} after", MAX_RELATIONS)
+    problems += _names_problems(declaration.implies, f"{where} implies", MAX_RELATIONS)
     if declaration.group:
         problems.append(layer_name_problem(declaration.group, f"{where} group"))
     return [p for p in problems if p]

@@ -26,7 +26,12 @@ class AtomicVotes(ManagerBase):
     """The open atomic activation (`_transaction`) and the commands behind it."""
 
     def _propose(
-        self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
+        self,
+        command: ActivationCommand,
+        active: tuple[str, ...],
+        now: float,
+        received: float,
+        explicit: tuple[str, ...] | None = None,
     ) -> list[ManagerAction]:
         # The whole command, vote and acknowledgements, ends at its deadline.
         deadline = min(self._deadline(command, received), received + self.settings.max_vote_time)
@@ -69,6 +74,7 @@ class AtomicVotes(ManagerBase):
             deadline=deadline,
             targets=set(self._participants),
             timeout=timeout,
+            explicit=explicit,
         )
         return [PublishProposal(proposal), *self._count_votes(now)]
 
@@ -122,7 +128,12 @@ class AtomicVotes(ManagerBase):
         proposal = transaction.proposal
         self._epoch_floor = proposal.epoch - 1  # the proposed epoch itself is committed
         published = self._publish(
-            proposal.active, proposal.requester, proposal.reason, now, proposal.epoch - 1
+            proposal.active,
+            proposal.requester,
+            proposal.reason,
+            now,
+            proposal.epoch - 1,
+            transaction.explicit,
         )
         # The second phase waits for the acknowledgements as a synchronous activation does,
         # until the same deadline: the command's timeout bounds it as a whole.

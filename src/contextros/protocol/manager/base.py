@@ -31,7 +31,7 @@ from contextros.protocol.manager.records import (
     Transaction,
 )
 from contextros.protocol.manager.settings import ManagerSettings
-from contextros.protocol.relations import DeclaredOrder, LayerDeclaration
+from contextros.protocol.relations import DeclaredOrder, LayerDeclaration, Switched, explicit_roots
 from contextros.protocol.state import INITIAL_STATE, KnownParticipant, LayerState, ManagerMemory
 
 # The message of a command that leaves the configuration as it was (clients show it as is).
@@ -51,6 +51,10 @@ class ManagerBase(ABC):
         memory = saved_state if isinstance(saved_state, ManagerMemory) else None
         saved = saved_state.state if isinstance(saved_state, ManagerMemory) else saved_state
         self._state: LayerState = saved or INITIAL_STATE
+        # The layers of the state asked for explicitly, in its order; the others are there
+        # because one of these implies them (a state file from before `implies`: all asked).
+        explicit = memory.explicit if memory is not None else None
+        self._explicit: tuple[str, ...] = self._state.active if explicit is None else explicit
         self._participants: dict[Key, ParticipantRecord] = {}
         # Incarnations replaced by a newer one under the same name (a restart); hearing one
         # again means two live processes share the name.
@@ -59,7 +63,7 @@ class ManagerBase(ABC):
         self._hosted: dict[str, tuple[str, ...]] = {}
         self._pending: list[PendingActivation] = []
         self._queued: list[tuple[ActivationCommand, float]] = []
-        self._order_cache: tuple[ActivationCommand, int, DeclaredOrder] | None = None
+        self._order_cache: tuple[ActivationCommand, int, DeclaredOrder, Switched] | None = None
         self._declarations_cache: dict[str, LayerDeclaration] | None = None
         # Commands naming layers not known yet, held during the grace period after recovery.
         self._held: list[tuple[ActivationCommand, float]] = []
@@ -99,6 +103,7 @@ class ManagerBase(ABC):
                 KnownParticipant(node, incarnation, record.report.hosted)
                 for (node, incarnation), record in sorted(self._participants.items())
             ),
+            explicit=self._explicit,
         )
 
     @property
@@ -106,12 +111,31 @@ class ManagerBase(ABC):
         return self._state
 
     @property
+    def explicit(self) -> tuple[str, ...]:
+        """The active layers asked for explicitly (the others are implied by these)."""
+        return self._explicit
+
+    @property
     def recovering(self) -> bool:
         return self._recovering_until is not None
 
     def _publish(
-        self, active: tuple[str, ...], requester: str, reason: str, now: float, above: int
+        self,
+        active: tuple[str, ...],
+        requester: str,
+        reason: str,
+        now: float,
+        above: int,
+        explicit: tuple[str, ...] | None = None,
     ) -> PublishState:
+        """Publish `active`; `explicit`: which of them were asked for (None: the current
+        state's, if it is the same configuration, else those no other active layer implies)."""
+        if explicit is None:
+            if tuple(active) == self._state.active:
+                explicit = self._explicit
+            else:
+                explicit = explicit_roots(active, self.declarations())
+        self._explicit = tuple(name for name in explicit if name in active)
         self._state = LayerState(
             epoch=max(above, self._state.epoch, self._epoch_floor) + 1,
             active=tuple(active),
@@ -177,7 +201,12 @@ class ManagerBase(ABC):
 
     @abstractmethod
     def _propose(
-        self, command: ActivationCommand, active: tuple[str, ...], now: float, received: float
+        self,
+        command: ActivationCommand,
+        active: tuple[str, ...],
+        now: float,
+        received: float,
+        explicit: tuple[str, ...] | None = None,
     ) -> list[ManagerAction]: ...
 
     @abstractmethod

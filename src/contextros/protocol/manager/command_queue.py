@@ -15,9 +15,14 @@ from contextros.protocol.manager.records import PendingActivation
 from contextros.protocol.relations import (
     DeclaredOrder,
     LayerDeclaration,
+    Switched,
     declared_order,
+    implication_problems,
+    implied_by,
+    implied_layers,
     order_note,
     relation_violations,
+    switched,
 )
 from contextros.protocol.validation import listing
 
@@ -84,15 +89,20 @@ class CommandQueue(ManagerBase):
                 return []
             return [Reply(command.request_id, self._result(False, problem))]
         new_active = self._next_active(command)
+        explicit = self._switch(command)[1].explicit
         changes = new_active != self._state.active or self._state.epoch == 0
         if command.atomic and changes:
-            return self._propose(command, new_active, now, received)
+            return self._propose(command, new_active, now, received, explicit)
         note = self._order_note(command)
         actions: list[ManagerAction] = []
+        if not changes:
+            self._explicit = explicit  # (de)activating a layer also implied keeps it active
         if changes:
             self._decided_here = True
             actions.append(
-                self._publish(new_active, command.requester, command.reason, now, self._state.epoch)
+                self._publish(
+                    new_active, command.requester, command.reason, now, self._state.epoch, explicit
+                )
             )
         if not command.synchronous and not command.atomic:  # (atomic, no change: as sync)
             message = f"epoch {self._state.epoch} published{note}" if actions else NO_CHANGE
@@ -144,9 +154,29 @@ class CommandQueue(ManagerBase):
                 f"(known layers: {known}); nothing changed"
             )
             return message, True
+        implied_unknown = {
+            implied: name
+            for name in command.activate
+            for implied in implied_layers(name, declarations)
+            if implied not in declarations
+        }
+        if implied_unknown:
+            names = ", ".join(f"{i!r} (implied by {n})" for i, n in implied_unknown.items())
+            message = f"unknown layer {names}: no live participant implements it; nothing changed"
+            return message, True
         rivals = _group_rivals(command.activate, declarations)
         if rivals:
             return f"relation violated: {rivals}; activate only one of them; nothing changed", False
+        contradictions = [
+            problem
+            for name in dict.fromkeys(command.activate)
+            for problem in implication_problems(name, declarations)
+        ]
+        if contradictions:
+            return (
+                f"contradicting declarations: {'; '.join(contradictions[:5])}; nothing changed",
+                False,
+            )
         order = self._declared_order(command)
         if order.cycle:
             return (
@@ -162,8 +192,21 @@ class CommandQueue(ManagerBase):
         ]
         if introduced:
             causes = self._displaced(command, declarations, introduced)
+            causes += _implied_note(order.layers, declarations, introduced)
             return (
                 f"relation violated: {'; '.join(introduced[:5])}{causes}; nothing changed",
+                False,
+            )
+        kept = self._switch(command)[1].layers
+        still = [name for name in dict.fromkeys(command.deactivate) if name in kept]
+        if still:
+            by = implied_by(kept, declarations)
+            held = "; ".join(
+                f"{name} is implied by {', '.join(by.get(name, ()))}" for name in still
+            )
+            return (
+                f"cannot deactivate: {held}, which stays active; deactivate that instead; "
+                "nothing changed",
                 False,
             )
         return "", False
@@ -202,32 +245,26 @@ class CommandQueue(ManagerBase):
         return order_note(self._declared_order(command).moved)
 
     def _declared_order(self, command: ActivationCommand) -> DeclaredOrder:
+        return self._switch(command)[0]
+
+    def _switch(self, command: ActivationCommand) -> tuple[DeclaredOrder, Switched]:
         # Asked several times while one command is validated and executed: computed once per
         # command and state (the cache is dropped by every event, see `_fresh`).
         cached = self._order_cache
         if cached is not None and cached[0] is command and cached[1] == self._state.epoch:
-            return cached[2]
-        order = declared_order(self._unordered_next(command), self.declarations())
-        self._order_cache = (command, self._state.epoch, order)
-        return order
-
-    def _unordered_next(self, command: ActivationCommand) -> tuple[str, ...]:
-        # As the core's `switch`: deactivate, then activate; an active layer keeps its place,
-        # a new one becomes outermost, and activating a group member drops the others.
+            return cached[2], cached[3]
         declarations = self.declarations()
-        off = set(command.deactivate)
-        layers = [name for name in self._state.active if name not in off]
-        for name in dict.fromkeys(command.activate):
-            groups = _groups_of(name, declarations)
-            if groups:
-                layers = [
-                    other
-                    for other in layers
-                    if other == name or not (_groups_of(other, declarations) & groups)
-                ]
-            if name not in layers:
-                layers.append(name)
-        return tuple(layers)
+        # As the core's `switch` (relations.switched), with what the layers imply.
+        result = switched(
+            self._state.active,
+            self._explicit,
+            command.activate,
+            command.deactivate,
+            declarations,
+        )
+        order = declared_order(result.layers, declarations)
+        self._order_cache = (command, self._state.epoch, order, result)
+        return order, result
 
 
 def _groups_of(name: str, declarations: dict[str, LayerDeclaration]) -> frozenset[str]:
@@ -244,3 +281,13 @@ def _group_rivals(activate: tuple[str, ...], declarations: dict[str, LayerDeclar
             if other != name:
                 return f"{other} and {name} are both in exclusive group {group!r}"
     return ""
+
+
+def _implied_note(
+    active: tuple[str, ...], declarations: dict[str, LayerDeclaration], problems: list[str]
+) -> str:
+    """' (CameraHigh implied by Flight)' for the implied layers the problems name."""
+    by = implied_by(active, declarations)
+    named = {word.strip(",;'") for problem in problems for word in problem.split()}
+    notes = [f"{name} implied by {', '.join(by[name])}" for name in sorted(named) if name in by]
+    return f" ({'; '.join(notes[:5])})" if notes else ""

@@ -50,3 +50,5 @@ class Transaction:
     # Kept by `_count_votes` between full counts: the targets that voted.
     voted: set[Key] = field(default_factory=set)
     counted: bool = False
+    # The proposal's layers asked for explicitly (None: as `_publish` derives them).
+    explicit: tuple[str, ...] | None = None
