@@ -1,10 +1,13 @@
 """Context rules: the `rule` declarations of layer files, parsed the same in every flavour.
 
-A rule derives a context from the robot's own topics, one line in a layer file:
+A rule derives a context from the robot's own topics and from the ROS graph's state (a
+node's lifecycle state, a node's parameter), one line in a layer file:
 
     rule GpsFix: Outdoor while gps/fix.status.status >= 0 for 0.15 s else Indoor
     rule Battery: LowBattery while battery.percentage < 20 for 2 s hysteresis 5
     rule Dock: activate Docked when dock/contact.data == true
+    rule Degraded: SafeMode while lifecycle drivers/propeller != active
+    rule Slow: Careful while param controller.max_speed < 0.5
 
 A rule holds no code of the host language, so this grammar, its syntax tree and its
 diagnostics are language-neutral: the Python and the C++ flavour's parsers hand the text
@@ -23,11 +26,18 @@ Grammar (EBNF; `TOPIC.FIELD` reads a field of the latest message on a topic, e.g
     conjunct  = negation { "and" negation } ;
     negation  = "not" negation | "(" condition ")" | comparison ;
     comparison = operand [ ("<" | "<=" | ">" | ">=" | "==" | "!=") operand ] ;
-    operand   = FIELD | NUMBER | STRING | "true" | "false" ;
+    operand   = FIELD | NUMBER | STRING | "true" | "false" | graph ;
+    graph     = "lifecycle" NODE | "param" NODE "." PARAMETER ;
+
+`lifecycle NODE` is compared with `==`/`!=` against a lifecycle state, written bare
+(`lifecycle drivers/propeller != active`, one of LIFECYCLE_STATES); `param NODE.PARAMETER`
+reads a parameter's value like a field (the first dot ends the node's name; the rest, dots
+included, is the parameter's: `param controller.gains.kp`).
 """
 
 from __future__ import annotations
 
+import difflib
 import math
 import re
 from dataclasses import dataclass, field, replace
@@ -42,11 +52,27 @@ MAX_NESTING = 100
 _KEYWORDS = frozenset(
     {"while", "when", "for", "else", "hysteresis", "and", "or", "not", "activate", "deactivate"}
 )
+# The states a lifecycle node reports (lifecycle_msgs/msg/State: the primary states, then
+# the transitions between them), by their ids there.
+LIFECYCLE_STATES = {
+    1: "unconfigured",
+    2: "inactive",
+    3: "active",
+    4: "finalized",
+    10: "configuring",
+    11: "cleaningup",
+    12: "shuttingdown",
+    13: "activating",
+    14: "deactivating",
+    15: "errorprocessing",
+}
+GRAPH_WORDS = ("lifecycle", "param")
 _NAME = r"[A-Za-z_][A-Za-z0-9_]*"
 _RULE_TOKEN = re.compile(
     rf"""(?P<ws>[ \t]+)
     |(?P<comment>\#.*)
     |(?P<field>~?/?{_NAME}(?:/{_NAME})*(?:\.{_NAME})+)
+    |(?P<node>~?/{_NAME}(?:/{_NAME})*|{_NAME}(?:/{_NAME})+)
     |(?P<number>[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)
     |(?P<string>"(?:[^"\\]|\\.)*"|'(?:[^'\\]|\\.)*')
     |(?P<op><=|>=|==|!=|<|>|\(|\))
@@ -70,6 +96,26 @@ class FieldRef:
         return f"{self.topic}.{'.'.join(self.path)}"
 
 
+@dataclass(frozen=True)
+class GraphRef:
+    """`lifecycle NODE` (the node's lifecycle state, a string of LIFECYCLE_STATES) or
+    `param NODE.PARAMETER` (the parameter's value): the ROS graph's state, read like a field.
+    `node` is named as the rule names it (resolved in the manager's namespace, like a topic);
+    `parameter` is '' for `lifecycle`."""
+
+    kind: str  # "lifecycle" | "param"
+    node: str
+    parameter: str
+    at: Position
+
+    @property
+    def text(self) -> str:
+        """As written, normalised: the engine's name for this input."""
+        if self.kind == "lifecycle":
+            return f"lifecycle {self.node}"
+        return f"param {self.node}.{self.parameter}"
+
+
 Value = float | str | bool
 
 
@@ -79,7 +125,7 @@ class Literal:
     at: Position
 
 
-Operand = FieldRef | Literal
+Operand = FieldRef | Literal | GraphRef
 
 
 @dataclass(frozen=True)
@@ -123,7 +169,8 @@ class RuleDecl:
     hold: float = 0.0  # seconds the condition must keep its new value before acting
     hysteresis: float = 0.0  # how far past a threshold a 'while' condition must go back
     otherwise: Ref | None = None
-    fields: list[FieldRef] = field(default_factory=list)
+    fields: list[FieldRef] = field(default_factory=list)  # topic fields
+    graph: list[GraphRef] = field(default_factory=list)  # lifecycle states and parameters
     path: str = "<rules>"  # the file it was read from, for later diagnostics
 
     def targets(self) -> tuple[str, ...]:
@@ -150,6 +197,7 @@ class _RuleParser:
         self.i = 0
         self.depth = 0
         self.fields: list[FieldRef] = []
+        self.graph: list[GraphRef] = []
 
     def _tokenize(self, text: str, col: int) -> bool:
         pos = 0
@@ -233,6 +281,7 @@ class _RuleParser:
             condition,
             text,
             fields=self.fields,
+            graph=self.graph,
             path=self.sink.path,
         )
         if self.word("for") is not None:
@@ -316,7 +365,7 @@ class _RuleParser:
         token = self.peek()
         if token is not None and token.text in COMPARISONS:
             self.i += 1
-            right = self.operand()
+            right = self.state(token) if _is_lifecycle(left) else self.operand()
             if isinstance(left, Literal) and isinstance(right, Literal):
                 self.sink.error(
                     "a comparison of two constants: one side must be a field (TOPIC.FIELD)",
@@ -324,15 +373,115 @@ class _RuleParser:
                     start.col,
                 )
                 raise _Stop
+            if _is_lifecycle(right) and not _is_lifecycle(left):
+                self.sink.error(
+                    "write the lifecycle state's side first: lifecycle NODE == STATE",
+                    start.line,
+                    start.col,
+                )
+                raise _Stop
             return Comparison(left, token.text, right, start)
+        if _is_lifecycle(left):
+            assert isinstance(left, GraphRef)
+            self.sink.error(
+                f"compare the lifecycle state with a state: {left.text} == active "
+                f"(the states are {_STATE_LIST})",
+                start.line,
+                start.col,
+            )
+            raise _Stop
         if isinstance(left, Literal):
             self.sink.error(
-                "a condition needs a field (TOPIC.FIELD, e.g. battery.percentage < 20)",
+                "a condition needs a field (TOPIC.FIELD, e.g. battery.percentage < 20), a "
+                "parameter (param NODE.PARAMETER) or a lifecycle state (lifecycle NODE)",
                 start.line,
                 start.col,
             )
             raise _Stop
         return Comparison(left, "", None, start)
+
+    def state(self, op: _Tok) -> Operand:
+        """The other side of `lifecycle NODE ==`: a state, bare or quoted (or another
+        node's lifecycle state)."""
+        if op.text not in ("==", "!="):
+            self.sink.error(
+                "a lifecycle state is compared with == or != only (lifecycle NODE == active)",
+                self.line,
+                op.col,
+            )
+            raise _Stop
+        token = self.peek()
+        if token is not None and token.kind == "name" and token.text not in GRAPH_WORDS:
+            self.i += 1
+            value, at = token.text, Position(self.line, token.col)
+        else:
+            operand = self.operand()
+            if _is_lifecycle(operand):
+                return operand
+            if not (isinstance(operand, Literal) and isinstance(operand.value, str)):
+                self.sink.error(
+                    f"a lifecycle state is compared with a state: one of {_STATE_LIST}",
+                    operand.at.line,
+                    operand.at.col,
+                )
+                raise _Stop
+            value, at = operand.value, operand.at
+        if value not in LIFECYCLE_STATES.values():
+            close = difflib.get_close_matches(value, LIFECYCLE_STATES.values(), n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            self.sink.error(
+                f"unknown lifecycle state {value!r}{hint}: the states are {_STATE_LIST}",
+                at.line,
+                at.col,
+            )
+            raise _Stop
+        return Literal(value, at)
+
+    def graph_ref(self, word: _Tok) -> GraphRef:
+        """`lifecycle NODE` or `param NODE.PARAMETER` (`word` is the first word)."""
+        self.i += 1
+        at = Position(self.line, word.col)
+        lifecycle = word.text == "lifecycle"
+        example = (
+            "lifecycle drivers/propeller != active"
+            if lifecycle
+            else ("param controller.max_speed < 0.5")
+        )
+        token = self.peek()
+        if token is None or token.kind not in ("name", "node", "field") or token.text in _KEYWORDS:
+            self.fail(f"the node after '{word.text}' (e.g. {example})")
+        assert token is not None
+        self.i += 1
+        if token.text.startswith("~"):
+            self.sink.error(
+                f"{token.text!r}: a node is named by its namespace and name ('~' makes a topic "
+                "private to the manager, not a node)",
+                self.line,
+                token.col,
+            )
+            raise _Stop
+        if lifecycle:
+            if token.kind == "field":
+                self.sink.error(
+                    f"{token.text!r} is not a node name: a node name has no '.' (e.g. {example})",
+                    self.line,
+                    token.col,
+                )
+                raise _Stop
+            ref = GraphRef("lifecycle", token.text, "", at)
+        else:
+            if token.kind != "field":
+                self.sink.error(
+                    f"'param {token.text}' names no node: write param NODE.PARAMETER, the node "
+                    f"whose parameter it is, then '.' and the parameter (e.g. {example})",
+                    self.line,
+                    token.col,
+                )
+                raise _Stop
+            node, _, parameter = token.text.partition(".")
+            ref = GraphRef("param", node, parameter, at)
+        self.graph.append(ref)
+        return ref
 
     def operand(self) -> Operand:
         token = self.peek()
@@ -359,6 +508,8 @@ class _RuleParser:
             if text is None:
                 raise _Stop
             return Literal(text, at)
+        if token.kind == "name" and token.text in GRAPH_WORDS:
+            return self.graph_ref(token)
         if token.kind == "name" and token.text in ("true", "false"):
             self.i += 1
             return Literal(token.text == "true", at)
@@ -372,6 +523,17 @@ class _RuleParser:
             raise _Stop
         self.fail("a field (TOPIC.FIELD) or a constant")
         raise AssertionError("unreachable")
+
+
+def _is_lifecycle(operand: Operand | None) -> bool:
+    return isinstance(operand, GraphRef) and operand.kind == "lifecycle"
+
+
+_STATE_LIST = (
+    ", ".join(list(LIFECYCLE_STATES.values())[:4])
+    + "; during a transition "
+    + ", ".join(list(LIFECYCLE_STATES.values())[4:])
+)
 
 
 class _Stop(Exception):
@@ -427,7 +589,10 @@ def condition_text(condition: Condition) -> str:
     left = _operand_text(condition.left)
     if condition.right is None:
         return left
-    return f"{left} {condition.op} {_operand_text(condition.right)}"
+    right = condition.right
+    if _is_lifecycle(condition.left) and isinstance(right, Literal):
+        return f"{left} {condition.op} {right.value}"  # a state, bare as written
+    return f"{left} {condition.op} {_operand_text(right)}"
 
 
 def _grouped(condition: Condition) -> str:
@@ -436,7 +601,7 @@ def _grouped(condition: Condition) -> str:
 
 
 def _operand_text(operand: Operand) -> str:
-    if isinstance(operand, FieldRef):
+    if isinstance(operand, FieldRef | GraphRef):
         return operand.text
     if isinstance(operand.value, bool):
         return "true" if operand.value else "false"

@@ -9,7 +9,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-from contextros.language.rules import BoolOp, Condition, FieldRef, Literal, Not, RuleDecl, relaxed
+from contextros.language.rules import (
+    LIFECYCLE_STATES,
+    BoolOp,
+    Condition,
+    FieldRef,
+    GraphRef,
+    Literal,
+    Not,
+    RuleDecl,
+    relaxed,
+)
 
 # layer -> (its groups, what it excludes)
 Relations = Mapping[str, tuple[frozenset[str], frozenset[str]]]
@@ -86,17 +96,22 @@ def _clashes(a: Outcome, b: Outcome, relations: Relations) -> str:
 
 
 Interval = tuple[float, bool, float, bool]  # low, low inclusive, high, high inclusive
+# What a conjunction allows of one value: an interval of a number (a field, a parameter),
+# or the set of states a lifecycle state may be in.
+Allowed = Interval | frozenset[str]
+_STATES = frozenset(LIFECYCLE_STATES.values())
 
 
-def _constraints(condition: Condition, negated: bool) -> dict[str, Interval] | None:
-    """The condition as one interval per numeric field, if it is a conjunction of
-    comparisons of fields with numbers (else None: nothing is known)."""
+def _constraints(condition: Condition, negated: bool) -> dict[str, Allowed] | None:
+    """The condition as what it allows of each value, if it is a conjunction of comparisons
+    of fields or parameters with numbers and of lifecycle states with states (else None:
+    nothing is known)."""
     if isinstance(condition, Not):
         return _constraints(condition.operand, not negated)
     if isinstance(condition, BoolOp):
         if (condition.op == "and") == negated:  # an 'or', or a negated 'and'
             return None
-        merged: dict[str, Interval] = {}
+        merged: dict[str, Allowed] = {}
         for operand in condition.operands:
             part = _constraints(operand, negated)
             if part is None:
@@ -105,11 +120,15 @@ def _constraints(condition: Condition, negated: bool) -> dict[str, Interval] | N
                 merged[key] = _intersect(merged[key], interval) if key in merged else interval
         return merged
     left, op, right = condition.left, condition.op, condition.right
-    if isinstance(right, FieldRef) and isinstance(left, Literal):
+    if isinstance(right, FieldRef | GraphRef) and isinstance(left, Literal):
         left, right = right, left
         op = {"<": ">", "<=": ">=", ">": "<", ">=": "<="}.get(op, op)
-    if not (isinstance(left, FieldRef) and isinstance(right, Literal)):
+    if not (isinstance(left, FieldRef | GraphRef) and isinstance(right, Literal)):
         return None
+    if isinstance(left, GraphRef) and left.kind == "lifecycle":
+        equal = (op == "==") != negated
+        state = frozenset({str(right.value)})
+        return {left.text: state if equal else _STATES - state}
     if not isinstance(right.value, float) or isinstance(right.value, bool):
         return None  # strings and bools: not intervals
     if negated:
@@ -127,14 +146,20 @@ def _constraints(condition: Condition, negated: bool) -> dict[str, Interval] | N
     return {left.text: intervals[op]}
 
 
-def _intersect(a: Interval, b: Interval) -> Interval:
+def _intersect(a: Allowed, b: Allowed) -> Allowed:
+    if isinstance(a, frozenset) or isinstance(b, frozenset):
+        # (a value is a lifecycle state or a number, never both)
+        assert isinstance(a, frozenset) and isinstance(b, frozenset)
+        return a & b
     low = max((a[0], a[1]), (b[0], b[1]), key=lambda edge: (edge[0], not edge[1]))
     high = min((a[2], a[3]), (b[2], b[3]), key=lambda edge: (edge[0], edge[1]))
     return (low[0], low[1], high[0], high[1])
 
 
-def _empty(interval: Interval) -> bool:
-    low, low_in, high, high_in = interval
+def _empty(allowed: Allowed) -> bool:
+    if isinstance(allowed, frozenset):
+        return not allowed
+    low, low_in, high, high_in = allowed
     return low > high or (low == high and not (low_in and high_in))
 
 

@@ -18,6 +18,7 @@ from contextros.language.rules import (
     Comparison,
     Condition,
     FieldRef,
+    GraphRef,
     Literal,
     Not,
     RuleDecl,
@@ -41,7 +42,8 @@ Evaluator = Callable[[Latest], bool]
 
 
 class _NoData(Exception):
-    """A topic the condition reads has not delivered a message yet."""
+    """A topic the condition reads has not delivered a message yet, or a lifecycle state or
+    parameter it reads has no value (its node is absent, or has no such parameter)."""
 
 
 @dataclass(frozen=True)
@@ -84,10 +86,12 @@ class Firing:
         return f"rule {self.rule}"
 
 
-def _operand(operand: FieldRef | Literal) -> Callable[[Latest], Any]:
+def _operand(operand: FieldRef | Literal | GraphRef) -> Callable[[Latest], Any]:
     if isinstance(operand, Literal):
         value = operand.value
         return lambda latest: value
+    if isinstance(operand, GraphRef):
+        return _graph_value(operand.text)
     topic, getter = operand.topic, operator.attrgetter(".".join(operand.path))
 
     def read(latest: Latest) -> Any:
@@ -97,6 +101,18 @@ def _operand(operand: FieldRef | Literal) -> Callable[[Latest], Any]:
         value = getter(message)
         if type(value) is bytes and len(value) == 1:
             return value[0]  # a ROS byte (octet) arrives from rclpy as bytes: its number
+        return value
+
+    return read
+
+
+def _graph_value(source: str) -> Callable[[Latest], Any]:
+    """A lifecycle state or a parameter: the plain value itself is the engine's input."""
+
+    def read(latest: Latest) -> Any:
+        value = latest.get(source)
+        if value is None:
+            raise _NoData(source)
         return value
 
     return read
@@ -197,11 +213,12 @@ class _RuleState:
             except Exception:  # the next evaluation reports it, not this look
                 value = None
         readings = []
-        for ref in {ref.text: ref for ref in self.rule.fields}.values():
+        refs: list[FieldRef | GraphRef] = [*self.rule.fields, *self.rule.graph]
+        for ref in {ref.text: ref for ref in refs}.values():
             try:
                 shown = repr(_operand(ref)(latest))
             except _NoData:
-                shown = "no message yet"
+                shown = "no message yet" if isinstance(ref, FieldRef) else "no value"
             except Exception as error:  # a field the message lacks
                 shown = f"unreadable ({type(error).__name__})"
             readings.append((ref.text, shown))
@@ -256,13 +273,30 @@ class RuleEngine:
         self._latest: dict[str, Any] = {}
         # Rules whose evaluation raised, each reported once: they stay off, the others run.
         self.failures: list[RuleFailed] = []
+        # Each input (a topic, or a graph value's `GraphRef.text`) -> the rules reading it.
         self._by_topic: dict[str, list[_RuleState]] = {}
         for state in self._states:
-            for topic in dict.fromkeys(ref.topic for ref in state.rule.fields):
-                self._by_topic.setdefault(topic, []).append(state)
+            inputs = [ref.topic for ref in state.rule.fields]
+            inputs += [ref.text for ref in state.rule.graph]
+            for name in dict.fromkeys(inputs):
+                self._by_topic.setdefault(name, []).append(state)
 
     def topics(self) -> tuple[str, ...]:
-        return tuple(self._by_topic)
+        """The topics the rules read (the graph's values come through `on_value`)."""
+        return self.rules.topics()
+
+    def on_value(self, source: str, value: Any, now: float) -> list[Firing]:
+        """A lifecycle state or parameter value (`source` is its `GraphRef.text`): evaluate
+        the rules reading it, as `on_message` does. None: it has no value now (its node left
+        the graph, the parameter was deleted): those rules' conditions are unknown, as
+        before a topic's first message, so they keep the value in force and a change
+        waiting out its hold time is dropped (docs/rules.md, "The ROS graph's state")."""
+        if value is not None:
+            return self.on_message(source, value, now)
+        self._latest.pop(source, None)
+        for state in self._by_topic.get(source, ()):
+            state.candidate = None
+        return []
 
     def on_message(self, topic: str, message: Any, now: float) -> list[Firing]:
         """The latest message on `topic`: evaluate the rules that read it. A rule whose

@@ -19,6 +19,7 @@ from contextros.language.rules import (
     Comparison,
     Condition,
     FieldRef,
+    GraphRef,
     Literal,
     Not,
     RuleDecl,
@@ -298,7 +299,7 @@ class RuleSet:
         found: list[Diagnostic] = []
         for rule in self.rules:
             sink = self.sink_for(rule)
-            for comparison in _comparisons(rule.condition):
+            for comparison in comparisons(rule.condition):
                 pair = _field_pair_problem(comparison, topic, types)
                 if pair:
                     ref, problem = pair
@@ -326,12 +327,13 @@ class RuleSet:
         return found
 
 
-def _comparisons(condition: Condition) -> list[Comparison]:
+def comparisons(condition: Condition) -> list[Comparison]:
+    """Every comparison in `condition`, in order."""
     if isinstance(condition, Comparison):
         return [condition]
     if isinstance(condition, Not):
-        return _comparisons(condition.operand)
-    return [c for operand in condition.operands for c in _comparisons(operand)]
+        return comparisons(condition.operand)
+    return [c for operand in condition.operands for c in comparisons(operand)]
 
 
 def _field_pair_problem(
@@ -376,8 +378,8 @@ def _kind_problem(kind: str, comparison: Comparison, ref: FieldRef) -> str:
     other = comparison.right if comparison.left is ref else comparison.left
     if other is None:
         return "" if kind == "bool" else "a condition on its own must be a bool field"
-    if isinstance(other, FieldRef):
-        return ""  # checked when both types are known (_field_pair_problem)
+    if isinstance(other, FieldRef | GraphRef):
+        return ""  # checked when both types are known (_field_pair_problem), or at run time
     value = other.value
     expected = (
         "bool" if isinstance(value, bool) else "number" if isinstance(value, float) else "string"
