@@ -296,3 +296,14 @@ def test_the_command_writes_the_layers_to_stdout_or_a_file_and_warnings_to_stder
     output = tmp_path / "rover.layers"
     assert main(["import-modes", str(model), "-o", str(output)]) == 0
     assert output.read_text(encoding="utf-8") == shown.out
+
+
+def test_the_docs_show_what_the_command_writes_for_their_model() -> None:
+    docs = (Path(__file__).parents[2] / "docs" / "ros-integration.md").read_text(encoding="utf-8")
+    blocks = {
+        name: re.search(rf"<!-- import-modes: {name} -->\n```\w+\n(.*?)```", docs, re.S)
+        for name in ("model", "layers")
+    }
+    assert blocks["model"] and blocks["layers"], "the side-by-side example left the docs"
+    text = import_modes(blocks["model"].group(1), "rover.yaml").text
+    assert text == blocks["layers"].group(1)

@@ -140,13 +140,11 @@ class _Translation:
     def translate(self) -> str:
         out = self.lines
         out += [
-            f"# Imported from {self.source_name}, a system_modes model, by "
-            "`contextros import-modes`.",
-            "# Each mode is a layer <part>_<MODE> (__DEFAULT__: <part>_DEFAULT); the modes of "
-            "one part form a group; a",
-            "# system mode implies its parts' modes; a node mode sets its parameters and "
-            "requires the node active.",
-            "# Activate <system>_DEFAULT where system_modes would activate the system.",
+            f"# Imported from {self.source_name} (a system_modes model) by `contextros "
+            "import-modes`: a layer",
+            "# per mode (<part>_<MODE>; __DEFAULT__ is <part>_DEFAULT), a group per system or "
+            "node. Activate",
+            "# <system>_DEFAULT where system_modes would activate the system.",
         ]
         for part in self.model.parts.values():
             if not part.modes:
