@@ -6,7 +6,11 @@ gives, if any), the rules' fields are checked against that type (an error names
 file:line:col and the rule stays off) and only then is the topic subscribed, so no message
 is ever evaluated against a field that does not exist. A topic with no publisher after
 `UNPUBLISHED_GRACE` is logged once (a misspelt name leaves its rules waiting for ever).
-See docs/rules.md.
+
+Lifecycle states and parameters (`lifecycle NODE`, `param NODE.PARAMETER`) come from
+`/parameter_events`, each node's `transition_event` topic and, when a node appears, its
+get_state / get_parameters services (`GraphWatch`), all read by the same
+`contextros.rules.graph.GraphInputs` as the replay. See docs/rules.md.
 """
 
 from __future__ import annotations
@@ -17,15 +21,19 @@ from collections.abc import Callable
 from typing import Any
 
 from contextros_interfaces.msg import RuleInfo
+from lifecycle_msgs.msg import TransitionEvent
+from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_parameter_events
 
 from contextros.language.diagnostics import Diagnostic
 from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
+from contextros.ros.graph_watch import GraphWatch
 from contextros.ros.message_types import field_kind, message_class
 from contextros.rules import Firing, RuleEngine, RuleSet
 from contextros.rules.firings import FiringQueue
+from contextros.rules.graph import PARAMETER_EVENTS, TRANSITION_EVENT, GraphInputs
 from contextros.rules.ruleset import FieldKind
 
 __all__ = ["RULE_QOS", "UNPUBLISHED_GRACE", "RuleRunner", "field_kind", "message_class"]
@@ -33,6 +41,10 @@ __all__ = ["RULE_QOS", "UNPUBLISHED_GRACE", "RuleRunner", "field_kind", "message
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
 RULE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
+)
+# A lifecycle node's transition events (rcl_lifecycle publishes them reliable, depth 10).
+TRANSITION_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE
 )
 # Seconds after the manager's start before a topic the rules read and no node publishes is
 # logged: a robot's sensor nodes are up by then (started with the manager, or before it),
@@ -80,6 +92,41 @@ class RuleRunner:
             # The file as given on the command line (`where`, in reasons on the wire: its name).
             node.get_logger().info(f"rule {rule.name} ({rule.path}:{rule.at.line}): {rule.text}")
         self._discover()
+        self.graph = GraphInputs(rules.rules, node.resolve_topic_name)
+        self._watch = self._watch_graph(discovery_period) if self.graph.nodes() else None
+
+    def _watch_graph(self, period: float) -> GraphWatch:
+        """Subscribe to the events of the nodes the rules read and ask their current state."""
+        if self.graph.parameters:
+            self._subscriptions.append(
+                self.node.create_subscription(
+                    ParameterEvent,
+                    PARAMETER_EVENTS,
+                    lambda event: self._on_graph(
+                        PARAMETER_EVENTS, event, getattr(event, "node", None)
+                    ),
+                    qos_profile_parameter_events,
+                )
+            )
+        for fqn in self.graph.lifecycle:
+            topic = f"{fqn}/{TRANSITION_EVENT}"
+            self._subscriptions.append(
+                self.node.create_subscription(
+                    TransitionEvent,
+                    topic,
+                    lambda event, t=topic, n=fqn: self._on_graph(t, event, n),
+                    TRANSITION_QOS,
+                )
+            )
+        nodes = ", ".join(self.graph.nodes())
+        self.node.get_logger().info(f"rules read the lifecycle states and parameters of {nodes}")
+        return GraphWatch(
+            self.node,
+            list(self.graph.lifecycle),
+            self.graph.parameter_nodes(),
+            lambda channel, message: self._on_graph(channel, message, None),
+            period=period,
+        )
 
     # -- binding ------------------------------------------------------------------------
 
@@ -181,6 +228,24 @@ class RuleRunner:
         finally:
             for failure in self.engine.failures:
                 self.node.get_logger().error(f"{failure} (a message on {topic})")
+            self.engine.failures.clear()
+        self.firings.fire(firings)
+
+    def _on_graph(self, channel: str, message: Any, fqn: object) -> None:
+        """An event (of node `fqn`) or a node's answer: the rules reading its values."""
+        if isinstance(fqn, str) and self._watch is not None:
+            self._watch.event_seen(fqn)
+        now = time.monotonic()
+        firings: list[Firing] = []
+        try:
+            for found in self.graph.read(channel, message) or ():
+                firings += self.engine.on_value(found.source, found.value, now)
+        finally:
+            for problem in self.graph.problems:
+                self.node.get_logger().error(f"rules: {problem}")
+            self.graph.problems.clear()
+            for failure in self.engine.failures:
+                self.node.get_logger().error(f"{failure} (a value from {channel})")
             self.engine.failures.clear()
         self.firings.fire(firings)
 

@@ -1,0 +1,130 @@
+"""Rules on the ROS graph's state in real processes: a manager's rule follows a real
+lifecycle node that another client configures, activates and deactivates, and a real node's
+parameter that another client sets; a node that is absent leaves its rule without a value."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+import pytest
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+
+from contextros.ros import LayerClient
+from tests.ros.processes import HERE, Child, ProcessGroup
+from tests.ros.system import LIVENESS, wait_registry
+from tests.ros.test_ros_bindings import call
+
+# The plain nodes run in /drivers (`/drivers/base`, `/drivers/propeller`), the manager in
+# /: the rules name them relative to the manager's namespace, as topics.
+RULES = """\
+rule Degraded: Slow while lifecycle drivers/propeller != active for 0.1 s
+rule Careful: Night while param drivers/base.max_speed < 0.5
+rule Ghost: Fast while lifecycle drivers/ghost == active
+"""
+
+
+@pytest.fixture(scope="module")
+def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Iterator[Child]:
+    rules = tmp_path_factory.mktemp("graph_rules") / "robot.layers"
+    rules.write_text(RULES, encoding="utf-8")
+    group = ProcessGroup()
+    try:
+        plain = group.start(
+            "plain nodes",
+            [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/drivers"],
+        )
+        group.participant("g1")
+        manager = group.manager("--liveness-timeout", LIVENESS, "--rules", str(rules))
+        plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+        client.wait_for_manager(15.0)
+        wait_registry(client, lambda r: any(p.node == "/g1" for p in r.participants))
+        yield manager
+    finally:
+        group.kill_all()
+
+
+def wait_active(client: LayerClient, layer: str, present: bool, what: str) -> None:
+    wait_registry(client, lambda r: (layer in r.active_layers) == present, 10.0, what)
+
+
+def transition(client: LayerClient, transition_id: int) -> None:
+    request = ChangeState.Request(transition=Transition(id=transition_id))
+    response = call(client, ChangeState, "/drivers/propeller/change_state", request)
+    assert response.success, transition_id
+
+
+def set_max_speed(client: LayerClient, value: float) -> None:
+    parameter = Parameter(
+        name="max_speed",
+        value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value),
+    )
+    request = SetParameters.Request(parameters=[parameter])
+    (result,) = call(client, SetParameters, "/drivers/base/set_parameters", request).results
+    assert result.successful, result.reason
+
+
+def rules_status(client: LayerClient) -> dict[str, dict[str, object]]:
+    """Each rule as `contextros status` shows it (the manager's registry answer)."""
+    return {
+        rule.name: {"value": rule.value, "settled": rule.settled, "readings": list(rule.readings)}
+        for rule in client.query().rules
+    }
+
+
+def test_a_lifecycle_rule_follows_the_node_from_its_first_state(
+    client: LayerClient, system: Child
+) -> None:
+    # The node starts unconfigured: the rule knows it from get_state, with no transition.
+    wait_active(client, "Slow", True, "Slow from the propeller's first state (unconfigured)")
+    registry = client.query()
+    assert registry.requester == "rule Degraded"
+    assert registry.reason == "lifecycle drivers/propeller != active for 0.1 s (robot.layers:1)"
+    transition(client, Transition.TRANSITION_CONFIGURE)
+    transition(client, Transition.TRANSITION_ACTIVATE)
+    wait_active(client, "Slow", False, "Slow off once another client activated the propeller")
+    assert rules_status(client)["Degraded"]["readings"] == [
+        "lifecycle drivers/propeller = 'active'"
+    ]
+    transition(client, Transition.TRANSITION_DEACTIVATE)
+    wait_active(client, "Slow", True, "Slow again once another client deactivated it")
+    assert client.query().requester == "rule Degraded"
+    assert rules_status(client)["Degraded"]["readings"] == [
+        "lifecycle drivers/propeller = 'inactive'"
+    ]
+
+
+def test_a_parameter_rule_switches_when_another_client_sets_the_parameter(
+    client: LayerClient, system: Child
+) -> None:
+    deadline = time.monotonic() + 10
+    while (rule := rules_status(client)["Careful"])["readings"] != [
+        "param drivers/base.max_speed = 1.0"
+    ]:
+        assert time.monotonic() < deadline, f"the first value from get_parameters: {rule}"
+        time.sleep(0.1)
+    assert rule["value"] == "false"
+    set_max_speed(client, 0.3)
+    wait_active(client, "Night", True, "Night once another client set max_speed to 0.3")
+    registry = client.query()
+    assert (registry.requester, registry.reason) == (
+        "rule Careful",
+        "param drivers/base.max_speed < 0.5 (robot.layers:2)",
+    )
+    set_max_speed(client, 2.0)
+    wait_active(client, "Night", False, "Night off once max_speed is 2.0")
+
+
+def test_a_rule_on_an_absent_node_has_no_value(client: LayerClient, system: Child) -> None:
+    ghost = rules_status(client)["Ghost"]
+    assert (ghost["value"], ghost["settled"]) == ("no data", "")
+    assert ghost["readings"] == ["lifecycle drivers/ghost = no value"]
+    assert "Fast" not in client.query().active_layers
+    assert any(
+        "rules read the lifecycle states and parameters of /drivers/propeller, /drivers/ghost, "
+        "/drivers/base" in line
+        for line in system.lines
+    ), system.output()
