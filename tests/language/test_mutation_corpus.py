@@ -219,7 +219,7 @@ ROBOT_RULES = (
             ROBOT,
             "Layer Indoor [",
             "Layer Indoor",
-            "22:1: expected 'excludes', 'requires', 'after' or '[', found 'double'",
+            "22:1: expected 'excludes', 'requires', 'after', 'implies' or '[', found 'double'",
         ),
         (
             "x.cpp.layers",

@@ -125,7 +125,7 @@ def test_comments_and_blank_lines_between_declarations() -> None:
         ("layer A\n    def f(): ...\n", (1, 8, "expected ':' at the end of the layer declaration")),
         (
             "layer A foo:\n    def f(): ...\n",
-            (1, 9, "expected 'excludes', 'requires', 'after' or ':', found 'foo'"),
+            (1, 9, "expected 'excludes', 'requires', 'after', 'implies' or ':', found 'foo'"),
         ),
         (
             "layer A excludes:\n    def f(): ...\n",

@@ -323,7 +323,7 @@ using detail::Runtime;
 
 bool operator==(const LayerInfo& a, const LayerInfo& b) {
   return a.name == b.name && a.excludes == b.excludes && a.required == b.required &&
-         a.after == b.after && a.group == b.group;
+         a.after == b.after && a.group == b.group && a.implies == b.implies;
 }
 
 void define_layer(const LayerInfo& layer) { define_layer(layer, "", {}); }
@@ -336,7 +336,7 @@ void define_layer(const LayerInfo& layer, std::string description, LayerHooks ho
     throw LayerDefinitionError("layer " + layer.name + ": group '" + layer.group +
                                "' is not an identifier");
   }
-  for (const auto* relation : {&layer.excludes, &layer.required, &layer.after}) {
+  for (const auto* relation : {&layer.excludes, &layer.required, &layer.after, &layer.implies}) {
     for (const auto& name : *relation) {
       if (!detail::is_identifier(name)) {
         throw LayerDefinitionError("layer " + layer.name + ": '" + name + "' is not a layer name");
@@ -349,6 +349,11 @@ void define_layer(const LayerInfo& layer, std::string description, LayerHooks ho
   for (const auto& name : layer.required) {
     if (std::find(layer.excludes.begin(), layer.excludes.end(), name) != layer.excludes.end()) {
       throw LayerDefinitionError("layer " + layer.name + " both requires and excludes " + name);
+    }
+  }
+  for (const auto& name : layer.implies) {
+    if (std::find(layer.excludes.begin(), layer.excludes.end(), name) != layer.excludes.end()) {
+      throw LayerDefinitionError("layer " + layer.name + " both implies and excludes " + name);
     }
   }
   Runtime& runtime = Runtime::instance();

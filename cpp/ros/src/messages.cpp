@@ -25,6 +25,7 @@ msg::LayerInfo layer_to_msg(const LayerInfo& layer) {
   info.required = sorted(layer.required);
   info.after = sorted(layer.after);
   info.group = layer.group;
+  info.implies = sorted(layer.implies);
   return info;
 }
 

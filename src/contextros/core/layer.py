@@ -45,6 +45,10 @@ class Layer:
       partials run first. The core composes by activation order and does not reorder;
       the Layer manager composes the system's active set in this order (participants
       announce it), and ``contextros.language.activation_order`` computes it locally.
+    - ``implies``: these layers are active whenever this one is (a system's mode implying
+      its parts'). The Layer manager activates them with it, transitively, and removes
+      what it alone implied when it leaves (participants announce it); the core itself
+      activates only what it is given, and checks nothing about ``implies``.
 
     Hooks take no arguments. On a switch, ``on_deactivate`` hooks of the leaving
     layers run first (newest layer first, while they are still active), then the new
@@ -57,6 +61,7 @@ class Layer:
         "description",
         "excludes",
         "group",
+        "implies",
         "name",
         "on_activate",
         "on_deactivate",
@@ -68,6 +73,7 @@ class Layer:
     excludes: frozenset[str]
     requires: frozenset[str]
     after: frozenset[str]
+    implies: frozenset[str]
     group: str | None
     on_activate: Hook | None
     on_deactivate: Hook | None
@@ -83,6 +89,7 @@ class Layer:
         on_activate: Hook | None = None,
         on_deactivate: Hook | None = None,
         after: Iterable[Layer | str] | Layer | str = (),
+        implies: Iterable[Layer | str] | Layer | str = (),
     ) -> None:
         if not isinstance(name, str) or not name.isidentifier():
             raise LayerDefinitionError(
@@ -101,6 +108,10 @@ class Layer:
             both = ", ".join(sorted(self.excludes & self.requires))
             raise LayerDefinitionError(f"layer {name!r} both requires and excludes {both}")
         self.after = _names(after, layer=name, relation="come after")
+        self.implies = _names(implies, layer=name, relation="imply")
+        if self.excludes & self.implies:
+            both = ", ".join(sorted(self.excludes & self.implies))
+            raise LayerDefinitionError(f"layer {name!r} both implies and excludes {both}")
         self.group = group
         self.on_activate = on_activate
         self.on_deactivate = on_deactivate

@@ -26,6 +26,7 @@ from contextros.language.diagnostics import (
 from contextros.language.flavours import parse_with_diagnostics, read_source, unreadable
 from contextros.language.python_syntax import guard_name
 from contextros.language.syntax import Function, LayerDecl, LayerFile, Position, Ref
+from contextros.language.words import RELATIONS
 
 if TYPE_CHECKING:
     from contextros.rules.ruleset import MessageTypes
@@ -178,6 +179,13 @@ def check_activation_order(
     return checker.sink.items
 
 
+# Why a cycle of a relation is an error.
+_CYCLE_ERRORS = {
+    "after": "an order cannot go both ways",
+    "implies": "a layer cannot imply itself",
+}
+
+
 class _Checker:
     def __init__(self, layer_file: LayerFile, message_types: MessageTypes | None = None) -> None:
         self.file = layer_file
@@ -295,7 +303,7 @@ class _Checker:
 
     def _relations(self) -> None:
         for layer in self.layers.values():
-            for relation in ("excludes", "requires", "after"):
+            for relation in RELATIONS:
                 refs: list[Ref] = getattr(layer, relation)
                 for ref in refs:
                     if not self._known(ref, f"'{relation}' of layer {layer.name!r}"):
@@ -309,10 +317,12 @@ class _Checker:
                         )
                     elif relation == "excludes":
                         self.excluded.add(frozenset((layer.name, ref.name)))
-                    elif relation == "requires" and ref.name in {r.name for r in layer.excludes}:
+                    elif relation in ("requires", "implies") and ref.name in {
+                        r.name for r in layer.excludes
+                    }:
                         self.broken.add(layer.name)
                         self.sink.error(
-                            f"layer {layer.name!r} both requires and excludes {ref.name!r}",
+                            f"layer {layer.name!r} both {relation} and excludes {ref.name!r}",
                             ref.at.line,
                             ref.at.col,
                         )
@@ -564,10 +574,15 @@ class _Checker:
         return b not in self.after[a] and a not in self.after[b]
 
     def _interaction(self) -> None:
-        requires = self.requires = {name: self._closure(name, "requires") for name in self.layers}
+        implies = {name: self._closure(name, "implies") for name in self.layers}
+        required = {name: self._closure(name, "requires") for name in self.layers}
+        self._cycles("requires", required, error=False)
+        # What a layer implies is active whenever it is, as what it requires must be.
+        requires = self.requires = {name: required[name] | implies[name] for name in self.layers}
         after = self.after = {name: self._closure(name, "after") for name in self.layers}
-        self._cycles("requires", requires, error=False)
         self._cycles("after", after, error=True)
+        self._cycles("implies", implies, error=True)
+        self._implications(implies)
         possible = self.possible
         for name, layer in self.layers.items():
             needed = {name, *requires[name]}
@@ -615,13 +630,66 @@ class _Checker:
             cycle = " -> ".join([*sorted(members), sorted(members)[0]])
             message = f"'{relation}' cycle: {cycle}"
             if error:
-                self.sink.error(message + "; an order cannot go both ways", ref.at.line, ref.at.col)
+                if relation == "implies":
+                    self.broken.update(members)
+                why = _CYCLE_ERRORS[relation]
+                self.sink.error(f"{message}; {why}", ref.at.line, ref.at.col)
             else:
                 self.sink.warning(
                     message + "; these layers can only be activated together, in one switch",
                     ref.at.line,
                     ref.at.col,
                 )
+
+    def _implications(self, implies: dict[str, set[str]]) -> None:
+        """A layer implying two layers of one group, a layer it excludes, or a layer that
+        excludes another it implies: an error at the 'implies' entry that brings the
+        contradiction in, said once, of the innermost layer implying both."""
+        contradictory: set[str] = set()
+        # Innermost first: a layer whose implied layers are settled comes after them.
+        pending = [name for name in self.layers if name not in self.broken]
+        while pending:
+            ready = [n for n in pending if not (implies[n] & set(pending)) or n in implies[n]]
+            ready = ready or pending  # a cycle, reported already
+            for name in ready:
+                pending.remove(name)
+                if implies[name] & (contradictory | self.broken) or name in implies[name]:
+                    contradictory.add(name)  # said of the implied layer already
+                    self.broken.add(name)
+                    continue
+                problem = self._contradiction(name, implies)
+                if problem is not None:
+                    contradictory.add(name)
+                    self.broken.add(name)
+                    message, ref = problem
+                    self.sink.error(message, ref.at.line, ref.at.col)
+
+    def _contradiction(self, name: str, implies: dict[str, set[str]]) -> tuple[str, Ref] | None:
+        members = sorted({name, *implies[name]})
+        for a, b in combinations(members, 2):
+            if frozenset((a, b)) not in self.excluded:
+                continue
+            # The last 'implies' entry of `name` that brings a or b: where it contradicts.
+            ref = [
+                r
+                for r in self.layers[name].implies
+                if r.name in (a, b) or {a, b} & implies.get(r.name, set())
+            ][-1]
+            other = b if a == name else a if b == name else ""
+            group = self.group_of.get(a)
+            if other:
+                what = f"layer {name!r} implies {other!r}"
+            else:
+                what = f"layer {name!r} implies {a!r} and {b!r}"
+            if group is not None and group == self.group_of.get(b):
+                why = f"both in group {group!r}, of which at most one is active"
+            elif not other:
+                why = "which exclude each other"
+            else:
+                excluded = {r.name for r in self.layers[name].excludes}
+                why = "which it excludes" if other in excluded else "which excludes it"
+            return f"{what}, {why}", ref
+        return None
 
     # -- parameter and lifecycle bindings (language-neutral) ------------------------------
 

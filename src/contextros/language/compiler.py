@@ -25,6 +25,7 @@ from contextros.language.diagnostics import Diagnostic, source_lines
 from contextros.language.flavours import read_source
 from contextros.language.python_syntax import PythonFunction, guard_function_lines, guard_name
 from contextros.language.syntax import Function, Hook, LayerDecl, LayerFile, Ref, SourceLine
+from contextros.language.words import RELATIONS
 
 # Bumped whenever the generated code changes shape: it invalidates the loader's cache.
 COMPILER_VERSION = 1
@@ -203,7 +204,7 @@ class _Emitter:
             arguments.append(f"description={_literal(layer.description)}")
         if group is not None:
             arguments.append(f"group={_literal(group)}")
-        for relation in ("excludes", "requires", "after"):
+        for relation in RELATIONS:
             names = _unique(ref.name for ref in getattr(layer, relation))
             if names:
                 arguments.append(f"{relation}={_names_tuple(names)}")

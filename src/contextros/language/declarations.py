@@ -15,7 +15,7 @@ from contextros.protocol.relations import LayerDeclaration
 
 
 def declarations_from_files(paths: Iterable[str | os.PathLike[str]]) -> list[LayerDeclaration]:
-    """Each layer of the files with its declared excludes, requires and after, and each
+    """Each layer of the files with its declared excludes, requires, after and implies, and each
     group's members, in file order (files whose parse failed contribute nothing: their
     errors are reported where the files are checked)."""
     parsed, _ = parse_files(paths)
@@ -30,6 +30,7 @@ def declarations_from_files(paths: Iterable[str | os.PathLike[str]]) -> list[Lay
                     excludes=frozenset(r.name for r in layer.excludes),
                     requires=frozenset(r.name for r in layer.requires),
                     after=frozenset(r.name for r in layer.after),
+                    implies=frozenset(r.name for r in layer.implies),
                 )
             )
     return found

@@ -48,6 +48,7 @@ from contextros.language.words import (
     a_declaration,
     expected_declaration,
     misspelt,
+    relation_words,
 )
 
 # Maps a (1-based row, 0-based column) of a parsed piece to the same in the .layers file.
@@ -407,7 +408,7 @@ class _Parser:
             )
         elif tokens[i].text != ":":
             self.sink.error(
-                f"expected 'excludes', 'requires', 'after' or ':', found {tokens[i].text!r}",
+                f"expected {relation_words(':')}, found {tokens[i].text!r}",
                 row + 1,
                 tokens[i].col + 1,
             )

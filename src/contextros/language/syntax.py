@@ -177,6 +177,7 @@ class LayerDecl:
     excludes: list[Ref] = field(default_factory=list)
     requires: list[Ref] = field(default_factory=list)
     after: list[Ref] = field(default_factory=list)
+    implies: list[Ref] = field(default_factory=list)
     description: str | None = None
     functions: list[Function] = field(default_factory=list)
     hooks: list[Hook] = field(default_factory=list)

@@ -5,7 +5,14 @@ from __future__ import annotations
 from collections.abc import Iterable
 
 # A layer's relations to others, in the order a declaration lists them (both flavours).
-RELATIONS = ("excludes", "requires", "after")
+RELATIONS = ("excludes", "requires", "after", "implies")
+
+
+def relation_words(last: str) -> str:
+    """`'excludes', 'requires', 'after', 'implies' or ':'`: what may follow a layer's name."""
+    return ", ".join(repr(word) for word in RELATIONS) + f" or {last!r}"
+
+
 # The one-line declarations, alike in every flavour (lines.py parses them).
 LINE_WORDS = ("rule", "parameter", "lifecycle", "topic")
 

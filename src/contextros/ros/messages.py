@@ -36,6 +36,7 @@ def declaration_to_msg(declaration: LayerDeclaration) -> Any:
         required=sorted(declaration.requires),
         group=declaration.group,
         after=sorted(declaration.after),
+        implies=sorted(declaration.implies),
     )
 
 
@@ -46,6 +47,7 @@ def declaration_from_msg(msg: Any) -> LayerDeclaration:
         requires=frozenset(msg.required),
         group=msg.group,
         after=frozenset(msg.after),
+        implies=frozenset(msg.implies),
     )
 
 
@@ -226,6 +228,7 @@ def registry_to_dict(registry: Any) -> dict[str, Any]:
                 "after": list(layer.after),
                 "implemented_by": [n for n in nodes.split(",") if n],
             }
+                "implies": list(layer.implies),
             for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
         ],
         "participants": [

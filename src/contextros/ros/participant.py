@@ -77,6 +77,7 @@ def declaration_of(layer: Layer) -> LayerDeclaration:
         requires=frozenset(layer.requires),
         group=layer.group or "",
         after=frozenset(layer.after),
+        implies=frozenset(layer.implies),
     )
 
 

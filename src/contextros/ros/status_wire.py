@@ -38,8 +38,8 @@ _PACK_TIME = struct.Struct("<iI").pack
 _CACHE_NODES = 4096
 _CACHE_DECLARATIONS = 16_384
 _CACHE_BYTES = 4 << 20
-# A LayerInfo as read: name, excludes, required, group, after.
-_Entry = tuple[str, tuple[str, ...], tuple[str, ...], str, tuple[str, ...]]
+# A LayerInfo as read: name, excludes, required, group, after, implies.
+_Entry = tuple[str, tuple[str, ...], tuple[str, ...], str, tuple[str, ...], tuple[str, ...]]
 
 
 class StatusDecoder:
@@ -115,10 +115,11 @@ class StatusDecoder:
             pos += len(last[0])
         else:
             entries = count()
-            if entries * 20 > size - pos:  # each LayerInfo takes 20 bytes at least
+            if entries * 24 > size - pos:  # each LayerInfo takes 24 bytes at least
                 raise ValueError(f"status field layers claims {entries} entries")
             decoded = [
-                (string(), strings(), strings(), string(), strings()) for _ in range(entries)
+                (string(), strings(), strings(), string(), strings(), strings())
+                for _ in range(entries)
             ]
             layers = self._remember(node, data[start:pos], decoded)
         field = "applied_epoch"
@@ -185,12 +186,13 @@ class StatusDecoder:
                 group=group,
                 after=frozenset(after),
             )
-            for name, excludes, required, group, after in decoded
+            for name, excludes, required, group, after, implies in decoded
         )
         if len(layers) > MAX_LAYERS:  # refused by the checks anyway: not worth keeping
             return layers
         full = (
             len(self._last_layers) >= _CACHE_NODES
+                implies=frozenset(implies),
             or self._cached_declarations + len(layers) > _CACHE_DECLARATIONS
             or self._cached_bytes + len(key) > _CACHE_BYTES
         )
@@ -292,3 +294,4 @@ def _strings(out: bytearray, texts: Iterable[str]) -> None:
     out += _PACK_U32(len(listed))
     for text in listed:
         _string(out, text)
+        _strings(out, sorted(declaration.implies))

@@ -250,6 +250,8 @@ def declaration_from_recorded(info: Any) -> LayerDeclaration:
         requires=frozenset(map(str, info.required)),
         group=str(info.group),
         after=frozenset(map(str, info.after)),
+        # Recorded before `implies` existed: none.
+        implies=frozenset(map(str, getattr(info, "implies", ()))),
     )
 
 

@@ -15,6 +15,7 @@ struct LayerInfo {
   std::vector<std::string> required;  // only active while these are ('requires' is a C++20 keyword)
   std::vector<std::string> after;     // when both are active, this one was activated later
   std::string group;                  // an exclusive group; "" = none
+  std::vector<std::string> implies{};  // active whenever this one is: the manager brings them
 };
 
 bool operator==(const LayerInfo& a, const LayerInfo& b);

@@ -330,6 +330,8 @@ class _Emitter:
                 _names(r.name for r in layer.after),
                 _quote(group_of.get(layer.name, "")),
             ]
+            if layer.implies:
+                fields.append(_names(r.name for r in layer.implies))
             arguments = f"{{{', '.join(fields)}}}"
             if layer.description is not None or layer.hooks:
                 arguments += f", {_quote(layer.description or '')}"

@@ -25,7 +25,7 @@ from contextros.language.cpp.tokens import SourceText, Token, tokens
 from contextros.language.cpp.tree import CppFunction, CppLayerFile
 from contextros.language.diagnostics import Diagnostic, DiagnosticSink
 from contextros.language.syntax import BaseBlock, GroupDecl, LayerDecl, Ref
-from contextros.language.words import RELATIONS, expected_declaration
+from contextros.language.words import RELATIONS, expected_declaration, relation_words
 
 
 def parse_with_diagnostics(
@@ -220,7 +220,7 @@ class _Parser(Reader):
         if j >= len(found) or found[j].text != "[":
             where = found[j].start if j < len(found) else found[j - 1].end
             got = f", found {found[j].text!r}" if j < len(found) else ""
-            self.error(f"expected 'excludes', 'requires', 'after' or '['{got}", where)
+            self.error(f"expected {relation_words('[')}{got}", where)
             return self._recover(found, j)
         result.layers.append(layer)  # declared, even if its block is broken
         close, paired = self.blocks.end(found, j)
