@@ -138,8 +138,8 @@ def test_an_inactive_subsystem_deactivates_every_node_under_it() -> None:
 def test_a_rule_to_inactive_becomes_a_context_rule_on_the_part_s_lifecycle_state() -> None:
     text, _ = imported("rover.yaml")
     assert (
-        "rule rover_stop_if_base_fails: deactivate rover_RUSH when lifecycle base == inactive"
-        in text.splitlines()
+        "rule rover_stop_if_base_fails: deactivate rover_RUSH when lifecycle base == inactive "
+        "for 1 s" in text.splitlines()
     )
 
 
@@ -164,7 +164,7 @@ def test_a_rule_on_a_part_s_mode_reads_the_mode_s_parameters() -> None:
     assert (
         "rule rover_stop_if_base_fails: deactivate rover_RUSH when lifecycle base == active "
         "and param base.max_speed == 0.1 and param base.planner == 'DWB' "
-        "and param base.limits.reverse == false"
+        "and param base.limits.reverse == false for 1 s"
     ) in text.splitlines()
 
 

@@ -25,6 +25,10 @@ from contextros.language.diagnostics import DiagnosticSink
 from contextros.language.system_modes.model import DEFAULT_MODE, Model, ModeRule, Part, PartState
 
 DEFAULT_WORD = "DEFAULT"
+# How long a part's state must hold before a converted rule acts. A node the manager itself
+# activates passes through inactive (configure, then activate): system_modes' rules wait
+# while a part is on its way, and so does this hold.
+RULE_HOLD = "1 s"
 
 
 def identifier(part: str) -> str:
@@ -241,7 +245,7 @@ class _Translation:
         system_modes applies a rule while the system's target is `if_target` and the part's
         actual state is `if_part`. A context rule cannot ask which layer is active, but
         deactivating a layer that is not active does nothing: a rule whose new target is
-        inactive becomes `deactivate <system>_<if_target> when <part's state>`, exactly.
+        inactive becomes `deactivate <system>_<if_target> when <part's state> for 1 s`.
         """
         name = re.sub(r"\W", "_", f"{identifier(part.name)}_{rule.name}")
         condition = self.part_condition(rule.part, rule.part_state)
@@ -254,12 +258,12 @@ class _Translation:
             return "", f"its target {rule.if_target.text()} has no layer (only modes do)"
         source = layer_name(part.name, rule.if_target.mode)
         if rule.new_target.state != "active":
-            return f"rule {name}: deactivate {source} when {condition}", ""
+            return f"rule {name}: deactivate {source} when {condition} for {RULE_HOLD}", ""
         target = layer_name(part.name, rule.new_target.mode)
         return "", (
             f"a context rule cannot ask whether {source} is the active mode; the closest is "
-            f"'rule {name}: activate {target} when {condition}', which also fires when "
-            f"{part.name} is in another mode or none"
+            f"'rule {name}: activate {target} when {condition} for {RULE_HOLD}', which also "
+            f"fires when {part.name} is in another mode or none"
         )
 
     def part_condition(self, part_name: str, state: PartState) -> str:
