@@ -22,6 +22,7 @@ from contextros.cli.answered_in_child import INTERRUPTED, answered_in_child
 from contextros.cli.option_types import ACTIVATION_TIMEOUT, MAX_TIMEOUT, Count, Seconds
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
+from contextros.protocol.relations import listed_with_implied
 
 if TYPE_CHECKING:
     from contextros.ros import LayerClient
@@ -511,9 +512,17 @@ def _table(header: list[str], rows: list[list[str]]) -> str:
     )
 
 
+def _active_cell(name: str, active: list[str], implied: dict[str, list[str]]) -> str:
+    """`yes`, `implied by Flight` or nothing: the ACTIVE column of `contextros status`."""
+    if name not in active:
+        return ""
+    return f"implied by {', '.join(implied[name])}" if implied.get(name) else "yes"
+
+
 def _registry_as_text(data: dict[str, Any]) -> str:
     """`contextros status`'s tables, from `registry_to_dict`'s data."""
-    active = ", ".join(data["active"]) or "none"
+    implied = data.get("implied_by", {})
+    active = listed_with_implied(data["active"], implied) or "none"
     by = f"{data['requester'] or '?'}: {data['reason'] or '-'}"
     parts = [f"epoch {data['epoch']}  active [{active}]  ({by})", ""]
     if data["recovering"]:
@@ -527,16 +536,17 @@ def _registry_as_text(data: dict[str, Any]) -> str:
     layer_rows = [
         [
             layer["name"],
-            "yes" if layer["name"] in data["active"] else "",
+            _active_cell(layer["name"], data["active"], implied),
             layer["group"],
             ", ".join(layer["excludes"]),
             ", ".join(layer["requires"]),
             ", ".join(layer["after"]),
+            ", ".join(layer.get("implies", ())),
             ", ".join(layer["implemented_by"]),
         ]
         for layer in data["layers"]
     ]
-    header = ["LAYER", "ACTIVE", "GROUP", "EXCLUDES", "REQUIRES", "AFTER", "NODES"]
+    header = ["LAYER", "ACTIVE", "GROUP", "EXCLUDES", "REQUIRES", "AFTER", "IMPLIES", "NODES"]
     parts.append(_table(header, layer_rows))
     parts.append("")
     node_rows = [
@@ -634,7 +644,7 @@ def _watch(args: argparse.Namespace) -> int:
     from contextros.cli.exits import output_gone
     from contextros.cli.watching import SwitchWatch
     from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, spin_nodes
-    from contextros.ros.messages import stamp_to_seconds
+    from contextros.ros.messages import declaration_from_msg, stamp_to_seconds
     from contextros.ros.registry_polling import RegistryPoller
     from contextros.ros.topics import QUERY_SERVICE
 
@@ -659,6 +669,7 @@ def _watch(args: argparse.Namespace) -> int:
         )
 
     def on_status(msg: Any) -> None:
+        watch.declared(declaration_from_msg(layer) for layer in msg.layers)
         show(
             watch.status(
                 msg.node,
@@ -686,6 +697,7 @@ def _watch(args: argparse.Namespace) -> int:
     # The nodes the manager counts (its liveness bound, hosted nodes), twice a second.
     RegistryPoller(node, QUERY_SERVICE, on_registry, period=0.5)
     node.create_timer(0.2, on_tick)
+
     def finished() -> bool:
         if not watch.finished(args.count, time.monotonic(), time.time()):
             return False
@@ -708,7 +720,7 @@ def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
         gone = "dropped by the manager" if record.get("dropped") else "left"
         line = f"node {_shown(record['node'])} {gone}"
     elif event in ("current", "state"):
-        active = ", ".join(record["active"]) or "none"
+        active = listed_with_implied(record["active"], record.get("implied_by", {})) or "none"
         who = f"{record['requester'] or '?'}: {record['reason'] or '-'}"
         timing = (
             f"current state (replayed, published {record['age_s']:.1f} s ago)"

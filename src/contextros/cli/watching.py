@@ -10,10 +10,13 @@ arrival.
 from __future__ import annotations
 
 from collections import OrderedDict, deque
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
 from contextros.protocol import DEFAULT_MANAGER_TIMEOUT
+from contextros.protocol.relations import LayerDeclaration, implied_by
+from contextros.protocol.validation import MAX_LAYERS
 
 Record = dict[str, Any]
 # Epochs remembered per node (applied, refused): enough for the switches still waited for.
@@ -24,6 +27,8 @@ MAX_TEXT = 500
 # A node heard this shortly before a registry query may not be registered yet when the
 # manager answers: it is not taken for dropped.
 REGISTRY_GRACE = 0.5
+# Layer declarations remembered from the statuses (to show which layers imply which).
+MAX_DECLARED = 4096
 
 
 @dataclass
@@ -84,6 +89,7 @@ class SwitchWatch:
     _registry: dict[str, tuple[str, ...]] | None = None
     _registry_asked: float = 0.0  # monotonic
     _left: dict[str, float] = field(default_factory=dict)  # left (monotonic), not yet in an answer
+    _declared: dict[str, LayerDeclaration] = field(default_factory=dict)  # by layer name
 
     def live_nodes(self, now: float) -> set[str]:
         if self._registry is None:
@@ -115,6 +121,9 @@ class SwitchWatch:
             "reason": reason,
             "replayed": replayed,
         }
+        implied = implied_by(active, self._declared)
+        if implied:  # {"Propulsion": ["Flight"]}: which active layers imply which
+            record["implied_by"] = {name: list(by) for name, by in implied.items()}
         if replayed:
             record["age_s"] = round(wall - published, 3)
         else:
@@ -132,6 +141,14 @@ class SwitchWatch:
         for node in sorted(live):
             records += self._judge(epoch, waiting, node, wall, timed=False)
         return records + self.tick(wall)
+
+    def declared(self, layers: Iterable[LayerDeclaration]) -> None:
+        """What a participant's status declares (the watch shows what implies what)."""
+        for layer in list(layers)[:MAX_LAYERS]:
+            known = self._declared.get(layer.name)
+            self._declared[layer.name] = layer if known is None else known.merged(layer)
+        while len(self._declared) > MAX_DECLARED:
+            self._declared.pop(next(iter(self._declared)))
 
     def status(
         self,

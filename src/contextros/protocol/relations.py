@@ -141,6 +141,14 @@ def implied_by(
     return {name: tuple(by) for name, by in sorted(found.items())}
 
 
+def listed_with_implied(active: Iterable[str], by: Mapping[str, Iterable[str]]) -> str:
+    """`CameraHigh (implied by Flight), Flight (implied by Mission), Mission`: the active
+    layers as status and watch show them (`by`: what `implied_by` gives)."""
+    return ", ".join(
+        f"{name} (implied by {', '.join(by[name])})" if by.get(name) else name for name in active
+    )
+
+
 def implication_problems(name: str, declarations: Mapping[str, LayerDeclaration]) -> list[str]:
     """Why `name` cannot be active with what it implies: an `implies` cycle among them, two
     of them in one exclusive group, or one excluding another. Sentences naming the layers,

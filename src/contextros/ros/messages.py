@@ -18,6 +18,7 @@ from contextros.protocol import (
     ParticipantReport,
     RegistryView,
 )
+from contextros.protocol.relations import implied_by, merge_declarations
 
 
 def stamp_to_seconds(stamp: Any) -> float:
@@ -211,6 +212,12 @@ def fill_query_response(response: Any, view: RegistryView, manager_id: str) -> A
     return response
 
 
+def _implied_by(registry: Any) -> dict[str, list[str]]:
+    declarations = merge_declarations(declaration_from_msg(layer) for layer in registry.layers)
+    implied = implied_by(registry.active_layers, declarations)
+    return {name: list(by) for name, by in implied.items()}
+
+
 def registry_to_dict(registry: Any) -> dict[str, Any]:
     """A QueryRegistry answer as plain data (`contextros status --json`, the dashboard)."""
     return {
@@ -221,6 +228,8 @@ def registry_to_dict(registry: Any) -> dict[str, Any]:
         "manager_id": registry.manager_id,
         "layers": [
             {
+        # Each active layer another active layer implies: {"Propulsion": ["Flight"]}.
+        "implied_by": _implied_by(registry),
                 "name": layer.name,
                 "group": layer.group,
                 "excludes": list(layer.excludes),
