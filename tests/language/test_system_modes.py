@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from contextros.cli import main
+from contextros.language.checker import check_source
 from contextros.language.system_modes import ModesModelError, import_modes
 from tests.language.conftest import FIXTURES
 
@@ -307,3 +308,21 @@ def test_the_docs_show_what_the_command_writes_for_their_model() -> None:
     assert blocks["model"] and blocks["layers"], "the side-by-side example left the docs"
     text = import_modes(blocks["model"].group(1), "rover.yaml").text
     assert text == blocks["layers"].group(1)
+
+
+@pytest.mark.parametrize("name", ["drone.yaml", "rover.yaml"])
+def test_contextros_check_accepts_the_layers_without_a_warning(name: str) -> None:
+    text, _ = imported(name)
+    found = [d.render() for d in check_source(text, name.replace(".yaml", ".layers"))]
+    assert found == []
+
+
+def test_the_checker_would_see_a_part_s_mode_beside_an_inactive_part() -> None:
+    """What the `excludes` of an inactive part's modes is for: without it, a layer wanting
+    the arm inactive and one wanting it active could be active together."""
+    text, _ = imported("rover.yaml")
+    without = text.replace(" excludes arm_DEFAULT, arm_GENTLE, arm_FIRM", "")
+    found = [d.render() for d in check_source(without, "rover.layers")]
+    assert any(
+        "lifecycle node arm is bound to inactive by layer 'rover_DEFAULT'" in f for f in found
+    )
