@@ -131,7 +131,7 @@ class ActualState:
 
     # -- what the manager watches -------------------------------------------------------
 
-    def keys(self) -> set[BindingKey]:
+    def bound_keys(self) -> set[BindingKey]:
         return {key for _, key in self.entries}
 
     def lifecycle_nodes(self) -> set[str]:
@@ -150,7 +150,7 @@ class ActualState:
     def read(self, key: BindingKey, reading: Reading) -> None:
         """What node and parameter `key` has (read from the node, or just set by the
         manager). A value that did not change keeps the time it was first noticed."""
-        if key not in self.keys():
+        if key not in self.bound_keys():
             return
         previous = self.readings.get(key)
         if previous is not None and _same(previous.value, reading.value):

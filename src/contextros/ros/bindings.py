@@ -31,10 +31,12 @@ from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
 
 from contextros.bindings import Bindings, LifecycleChange, ParameterChange, Plan, transitions
+from contextros.bindings.actual import ActualState, BindingKey, Reading
+from contextros.language.bindings import LifecycleBinding, ParameterBinding
 from contextros.language.bindings import ParameterValue as Value
 from contextros.ros.messages import seconds_to_stamp
 
-_PRIMARY = {
+PRIMARY_STATES = {
     State.PRIMARY_STATE_UNCONFIGURED: "unconfigured",
     State.PRIMARY_STATE_INACTIVE: "inactive",
     State.PRIMARY_STATE_ACTIVE: "active",
@@ -111,6 +113,8 @@ class BindingDriver:
         self._clients: dict[tuple[str, str], Any] = {}
         # (node, parameter or "" for lifecycle) -> the last result of applying it.
         self._results: dict[tuple[str, str], BindingResult] = {}
+        # What the switches read and set on the nodes, for the actual state (`take_readings`).
+        self._readings: list[tuple[BindingKey, Reading]] = []
         self._lock = threading.Lock()
         # Where `applied` and the originals are kept across restarts (next to the state file).
         self.memory = memory
@@ -140,7 +144,7 @@ class BindingDriver:
             }
             states = {str(node): str(state) for node, state in data["lifecycles"].items()}
             if not all(isinstance(name, str) for name in applied) or not all(
-                state in _PRIMARY.values() for state in states.values()
+                state in PRIMARY_STATES.values() for state in states.values()
             ):
                 raise ValueError("unexpected layer names or lifecycle states")
         except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
@@ -229,10 +233,12 @@ class BindingDriver:
                 if kind == "parameter":
                     node, name, previous = step
                     self._set(node, name, previous)
+                    self._seen((node, name), previous)
                 else:
                     node, path = step
                     for transition_id, label in path:
                         self._change_state(node, transition_id, label)
+                    self._seen((node, ""), self._get_state(node))
             except BindingError as error:
                 complete = False
                 self.node.get_logger().error(f"rolling back: {error}")
@@ -243,6 +249,7 @@ class BindingDriver:
     ) -> None:
         key = change.key
         current = self._get(change.node, change.name)
+        self._seen(key, current)
         if key not in self._original_parameters:
             self._original_parameters[key] = current
             originals.read.append(("parameter", key))
@@ -255,12 +262,14 @@ class BindingDriver:
             target = to_parameter_value(change.value, like=current)
         with self._outcome((change.node, change.name), change, shown(target)):
             self._set(change.node, change.name, target, change.layer)
+        self._seen(key, target)
         undo.append(("parameter", (change.node, change.name, current)))
 
     def _lifecycle(
         self, change: LifecycleChange, undo: list[tuple[str, Any]], originals: _Originals
     ) -> None:
         current = self._get_state(change.node)
+        self._seen((change.node, ""), current)
         if change.node not in self._original_states:
             self._original_states[change.node] = current
             originals.read.append(("lifecycle", change.node))
@@ -284,8 +293,63 @@ class BindingDriver:
                         undo.append(("lifecycle", (change.node, _reverse(done))))
                     raise
                 done.append((transition_id, label))
+        self._seen((change.node, ""), wanted)
         if done:
             undo.append(("lifecycle", (change.node, _reverse(done))))
+
+    # -- the actual state: what the nodes have (contextros.bindings.actual) -------------
+
+    def _seen(self, key: BindingKey, value: Any, noticed: float | None = None) -> None:
+        """Record what node and parameter `key` has: a ParameterValue, or a lifecycle state."""
+        wall = time.time()
+        if isinstance(value, str):
+            reading = Reading(value, value, wall, noticed or wall)
+        else:
+            reading = Reading(python_value(value), shown(value), wall, noticed or wall)
+        with self._lock:
+            self._readings.append((key, reading))
+
+    def take_readings(self) -> list[tuple[BindingKey, Reading]]:
+        """What was read or set since the last call (in that order)."""
+        with self._lock:
+            readings, self._readings = self._readings, []
+        return readings
+
+    def read(self, key: BindingKey, noticed: float) -> None:
+        """Read what the node has now (a watch's check; recorded for `take_readings`); a
+        node whose service is not discovered is not waited for. BindingError if no answer."""
+        node, name = key
+        kind, service_type = ("get_parameters", GetParameters) if name else ("get_state", GetState)
+        if not self._client(node, kind, service_type).service_is_ready():
+            raise BindingError(f"node {node} is not in the ROS graph ({node}/{kind})")
+        if name:
+            self._seen(key, self._get(node, name), noticed)
+            return
+        response = self._call(node, kind, GetState, GetState.Request(), "its lifecycle state")
+        label = PRIMARY_STATES.get(response.current_state.id)
+        state = label or f"in transition ({_printable(response.current_state.label)[:40]})"
+        self._seen(key, state, noticed)
+
+    def set_back(self, binding: ParameterBinding | LifecycleBinding) -> str:
+        """Give the node back what `binding` sets (its policy is `restore`); what was done,
+        for the log. BindingError if the node refuses or does not answer."""
+        node = self.resolve(binding.node)
+        if isinstance(binding, ParameterBinding):
+            current = self._get(node, binding.name)
+            target = to_parameter_value(binding.value, like=current)
+            self._set(node, binding.name, target, binding.layer.name)
+            self._seen((node, binding.name), target)
+            return f"set {node} {binding.name} from {shown(current)} back to {shown(target)}"
+        current = self._get_state(node)
+        try:
+            path = transitions(current, binding.state)
+        except ValueError as error:
+            raise BindingError(f"lifecycle node {node}: {error}") from None
+        for transition_id, label in path:
+            self._change_state(node, transition_id, label, binding.layer.name, current)
+        self._seen((node, ""), binding.state)
+        labels = ", ".join(label for _, label in path)
+        return f"brought lifecycle node {node} from {current} back to {binding.state} ({labels})"
 
     # -- what happened, for `status` and the dashboard -----------------------------------
 
@@ -302,8 +366,9 @@ class BindingDriver:
             raise
         self._results[key] = BindingResult(True, f"{verb} {value}{by}", time.time())
 
-    def infos(self) -> list[Any]:
-        """Every declaration with the last result of applying it (BindingInfo messages)."""
+    def infos(self, actual: ActualState | None = None) -> list[Any]:
+        """Every declaration with the last result of applying it (BindingInfo messages),
+        and with `actual`, what was read on the node and whether it drifted."""
         results = dict(self._results)
         declared = [
             (p.layer.name, "parameter", p.node, p.name, _shown_value(p.value), p.path, p.at)
@@ -312,8 +377,10 @@ class BindingDriver:
             (c.layer.name, "lifecycle", c.node, "", c.state, c.path, c.at)
             for c in self.bindings.lifecycles
         ]
+        policies = [b.policy for b in self.bindings.parameters]
+        policies += [b.policy for b in self.bindings.lifecycles]
         infos = []
-        for layer, kind, declared_node, parameter, value, path, at in declared:
+        for index, (layer, kind, declared_node, parameter, value, path, at) in enumerate(declared):
             node = self.resolve(declared_node)
             info = BindingInfo(
                 layer=layer,
@@ -327,6 +394,9 @@ class BindingDriver:
             if result is not None:
                 info.ok, info.last_result = result.ok, result.text
                 info.last_time = seconds_to_stamp(result.wall)
+            info.policy = policies[index]
+            if actual is not None:
+                _fill_actual(info, actual, index)
             infos.append(info)
         return infos
 
@@ -384,7 +454,7 @@ class BindingDriver:
         response = self._call(
             node, "get_state", GetState, GetState.Request(), "its lifecycle state"
         )
-        state = _PRIMARY.get(response.current_state.id)
+        state = PRIMARY_STATES.get(response.current_state.id)
         if state is None:
             label = _printable(response.current_state.label)
             raise BindingError(f"lifecycle node {node} is in transition state {label!r}")
@@ -451,6 +521,24 @@ class _Originals:
 
     read: list[tuple[str, Any]] = field(default_factory=list)
     restored: list[tuple[str, Any]] = field(default_factory=list)
+
+
+def python_value(message: Any) -> Value | None:
+    """A ParameterValue's value (None: not set, or of a type no binding sets)."""
+    known = _FIELDS.get(message.type)
+    return None if known is None else getattr(message, known[0])
+
+
+def _fill_actual(info: Any, actual: ActualState, index: int) -> None:
+    state = actual.state(index)
+    info.in_force, info.holds = state.in_force, state.holds
+    if state.reading is not None:
+        info.observed = state.reading.shown
+        info.observed_time = seconds_to_stamp(state.reading.wall)
+    if state.drifted_since is not None:
+        info.drifted = True
+        info.drifted_since = seconds_to_stamp(state.drifted_since)
+        info.drift_action = state.action
 
 
 _REVERSE = {

@@ -54,6 +54,7 @@ from contextros.ros.status_wire import StatusDecoder
 from contextros.rules import Firing, RuleSet
 
 if TYPE_CHECKING:
+    from contextros.ros.binding_watch import BindingWatch, WatchJob
     from contextros.ros.bindings import BindingDriver
     from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
@@ -258,11 +259,14 @@ class LayerManagerNode(Node):
         # Layers that drive ROS: parameters and lifecycle states set before a state is
         # published (docs/ros-integration.md); commands wait their turn meanwhile.
         self.bindings: BindingDriver | None = None
+        # What the nodes actually have, against what the layers set (drift, inference).
+        self.watch: BindingWatch | None = None
         # Commands waiting for the ROS side, with when each arrived (its deadline and its
         # answer's `elapsed` count from there).
         self._commands: deque[tuple[ActivationCommand, float]] = deque()
         self._driving = False
         self._driven: list[tuple[tuple[ActivationCommand, float] | None, str]] = []
+        self._watch_jobs_done: list[WatchJob] = []  # (under `_driven_lock` too)
         self._driven_lock = threading.Lock()
         self._driven_guard = self.create_guard_condition(self._on_driven)
         # A failed reconcile (a bound node is down) is tried again later, with a growing
@@ -280,6 +284,9 @@ class LayerManagerNode(Node):
                 state_file.with_name(f"{state_file.name}.bindings.json") if state_file else None
             )
             self.bindings = BindingDriver(self, bindings, memory=memory)
+            from contextros.ros.binding_watch import BindingWatch
+
+            self.watch = BindingWatch(self, self.bindings, self.log, self._submit_inferred)
         self.rules: RuleRunner | None = None
         if rules is not None and rules.rules:
             from contextros.ros.rules import RuleRunner
@@ -378,6 +385,7 @@ class LayerManagerNode(Node):
         if self._commands:
             self._next_command()
         self._reconcile()
+        self._watch_next()
         self._flush_logs()
 
     # -- commands, with the ROS side of layers first ----------------------------------------
@@ -469,8 +477,15 @@ class LayerManagerNode(Node):
     def _on_driven(self) -> None:
         with self._driven_lock:
             driven, self._driven = self._driven, []
+            watched, self._watch_jobs_done = self._watch_jobs_done, []
+        for job in watched:
+            self._driving = False
+            assert self.watch is not None
+            self.watch.finished(job)
         for queued, error in driven:
             self._driving = False
+            if self.watch is not None:
+                self.watch.switched()
             if queued is None:
                 self._reconciled(error)
                 continue
@@ -495,6 +510,7 @@ class LayerManagerNode(Node):
         # tries may take seconds), and one whose plan reaches its target heals it anyway.
         self._next_command()
         self._reconcile()
+        self._watch_next()
 
     def _reconcile(self) -> None:
         """States not made by a command (recovery), or a command whose outcome differed
@@ -530,6 +546,50 @@ class LayerManagerNode(Node):
             f"layers' ROS side not reached: {error} (try {self._reconcile_failures}; "
             f"again in {delay:g} s, or with the next command)"
         )
+
+    def _watch_next(self) -> None:
+        """Read what events say changed, set drifted bindings back, switch to an inferred
+        configuration: only while no switch runs or waits (docs/ros-integration.md)."""
+        if self.watch is None or self._driving or self._commands or self.protocol.recovering:
+            return
+        inferred = self.watch.inference(self.protocol.state.active)
+        if inferred is not None:
+            self._submit_inferred(inferred.activate, inferred.deactivate, inferred.reason)
+            return
+        job = self.watch.next_job()
+        if job is None:
+            return
+        self._driving = True
+        driver = self.bindings
+        assert driver is not None
+
+        def work() -> None:
+            try:
+                job.run(driver)
+            except Exception as failure:  # a bug must not leave the manager stuck
+                self.log.error(f"watching the layers' bindings: internal error: {failure!r}")
+            with self._driven_lock:
+                self._watch_jobs_done.append(job)
+            self._driven_guard.trigger()
+
+        threading.Thread(target=work, name="contextros-binding-watch", daemon=True).start()
+
+    def _submit_inferred(
+        self, activate: tuple[str, ...], deactivate: tuple[str, ...], reason: str
+    ) -> None:
+        """A switch inferred from what the nodes have (an `infer` drift): an ordinary
+        command (the watch logged why); a refusal is logged as any is."""
+        self._next_rule_request -= 1
+        command = ActivationCommand(
+            request_id=self._next_rule_request,
+            activate=activate,
+            deactivate=deactivate,
+            synchronous=True,
+            requester="contextros-inference",
+            reason=reason,
+        )
+        if not self._refused_when_full(command):
+            self._command(command)
 
     def _reply(self, request_id: int, result: ActivationResult) -> None:
         if request_id in self._rule_requests:
@@ -634,7 +694,7 @@ class LayerManagerNode(Node):
         if self.rules is not None:
             response.rules = self.rules.infos()
         if self.bindings is not None:
-            response.bindings = self.bindings.infos()
+            response.bindings = self.bindings.infos(self.watch.actual if self.watch else None)
         return response
 
     # -- actions ----------------------------------------------------------------------------

@@ -220,24 +220,26 @@ def _implied_by(registry: Any) -> dict[str, list[str]]:
 
 def registry_to_dict(registry: Any) -> dict[str, Any]:
     """A QueryRegistry answer as plain data (`contextros status --json`, the dashboard)."""
+    from contextros.bindings.inference import layers_holding  # (only status needs it)
+
     return {
         "epoch": registry.epoch,
         "active": list(registry.active_layers),
         "requester": registry.requester,
         "reason": registry.reason,
         "manager_id": registry.manager_id,
-        "layers": [
-            {
         # Each active layer another active layer implies: {"Propulsion": ["Flight"]}.
         "implied_by": _implied_by(registry),
+        "layers": [
+            {
                 "name": layer.name,
                 "group": layer.group,
                 "excludes": list(layer.excludes),
                 "requires": list(layer.required),
                 "after": list(layer.after),
+                "implies": list(layer.implies),
                 "implemented_by": [n for n in nodes.split(",") if n],
             }
-                "implies": list(layer.implies),
             for layer, nodes in zip(registry.layers, registry.implemented_by, strict=False)
         ],
         "participants": [
@@ -295,9 +297,26 @@ def registry_to_dict(registry: Any) -> dict[str, Any]:
                     if binding.last_result
                     else None
                 ),
+                **_binding_actual(binding),
             }
             for binding in registry.bindings
         ],
+        # The layers whose bindings all hold on the nodes (docs/ros-integration.md).
+        "actual": layers_holding((b.layer, b.holds) for b in registry.bindings),
+    }
+
+
+def _binding_actual(binding: Any) -> dict[str, Any]:
+    """What the manager read on a binding's node, and its drift."""
+    return {
+        "policy": binding.policy or "report",
+        "in_force": binding.in_force,
+        "observed": binding.observed,
+        "observed_time": stamp_to_seconds(binding.observed_time) if binding.observed else None,
+        "holds": binding.holds,
+        "drifted": binding.drifted,
+        "drifted_since": stamp_to_seconds(binding.drifted_since) if binding.drifted else None,
+        "drift_action": binding.drift_action,
     }
 
 
