@@ -249,6 +249,10 @@ sys:
         ),
         (NODE + NODE, "11:1: error: duplicate key 'cam' in the model"),
         (
+            NODE + NODE.replace("cam:", "/cam:"),
+            "11:1: error: '/cam' is 'cam' again (first at line 1)",
+        ),
+        (
             SYSTEM.replace("parts:\n      cam", "parts:\n      sys")
             .replace("cam: active.FAST", "sys: active.ON")
             .replace("cam: active", "sys: active"),

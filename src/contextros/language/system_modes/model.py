@@ -39,17 +39,15 @@ import re
 from dataclasses import dataclass, field
 from typing import Any
 
+from contextros.language.bindings import ParameterValue
 from contextros.language.diagnostics import DiagnosticSink
 from contextros.language.positions import Position
 
 DEFAULT_MODE = "__DEFAULT__"
 PART_STATES = ("active", "inactive", "unconfigured")
 RULE_KEYS = ("if_target", "if_part", "new_target")
-_MODE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-_PART_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*")
-_PARAMETER_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
-
-ParameterValue = bool | int | float | str
+_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")  # a mode's, or one part of a parameter's
+_PART_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(?:/[A-Za-z_][A-Za-z0-9_]*)*")  # a node's
 
 
 @dataclass(frozen=True)
@@ -177,7 +175,10 @@ class _Reader:
         items = self.mapping(root, "the model (one entry per system or node)")
         for name, key_node, value_node in items or ():
             part = self.part(name.lstrip("/"), key_node, value_node)
-            if part is not None:
+            if part is not None and part.name in model.parts:
+                first = model.parts[part.name].at.line
+                self.error(f"'{name}' is '{part.name}' again (first at line {first})", key_node)
+            elif part is not None:
                 model.parts[part.name] = part
         return model
 
@@ -254,7 +255,7 @@ class _Reader:
             return
         # __DEFAULT__ first: the other modes start from it wherever it stands in the file.
         for name, key_node, value_node in [default] + [i for i in items if i is not default]:
-            if name != DEFAULT_MODE and not _MODE_NAME.fullmatch(name):
+            if name != DEFAULT_MODE and not _NAME.fullmatch(name):
                 self.error(
                     f"mode name '{name}' of '{part.name}': letters, digits and _ only", key_node
                 )
@@ -301,7 +302,7 @@ class _Reader:
             return []
         found: list[tuple[str, Any]] = []
         for key, key_node, value_node in self.mapping(node, f"the parameters of {what}") or ():
-            if not _PARAMETER_NAME.fullmatch(key):
+            if not _NAME.fullmatch(key):
                 self.error(
                     f"parameter name '{key}' of {what}: letters, digits and _ only", key_node
                 )
@@ -357,7 +358,7 @@ class _Reader:
         if mode and state != "active":
             self.error(f"'{text}' for {what}: only an active part has a mode", node)
             return None
-        if mode and mode != DEFAULT_MODE and not _MODE_NAME.fullmatch(mode):
+        if mode and mode != DEFAULT_MODE and not _NAME.fullmatch(mode):
             self.error(f"'{text}' for {what}: '{mode}' is not a mode name", node)
             return None
         return PartState(state, mode or (DEFAULT_MODE if state == "active" else ""), _at(node))
