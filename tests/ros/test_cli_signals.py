@@ -39,6 +39,7 @@ BROKEN = "layer Night\n"
 BUSY = {
     "compile": ["{fifo}.layers"],
     "check": ["{fifo}.layers"],
+    "import-modes": ["{fifo}.yaml"],
     "rules replay": ["{fifo}.mcap", "--rules", "{files}/robot.layers"],
     "repair": ["{fifo}.mcap"],
     "activate": ["Night", "--wait-manager", "20"],
