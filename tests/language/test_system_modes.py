@@ -330,3 +330,33 @@ def test_the_checker_would_see_a_part_s_mode_beside_an_inactive_part() -> None:
     assert any(
         "lifecycle node arm is bound to inactive by layer 'rover_DEFAULT'" in f for f in found
     )
+
+
+def test_a_part_the_model_does_not_describe_is_a_plain_lifecycle_node() -> None:
+    model = (
+        """\
+lab:
+  ros__parameters:
+    type: system
+    parts: [cam, /lights]
+    modes:
+      __DEFAULT__:
+        cam: active
+        lights: inactive
+      DARK:
+        lights: active
+"""
+        + NODE
+    )
+    text = import_modes(model, "lab.yaml").text
+    layers = relations(text)
+    # cam has modes (its __DEFAULT__ is implied); lights is only a lifecycle node.
+    assert layers["lab_DEFAULT"] == (["cam_DEFAULT"], [])
+    assert bindings(text, "lab_DEFAULT") == ["lights inactive"]
+    assert layers["lab_DARK"] == (["cam_DEFAULT"], [])
+    assert bindings(text, "lab_DARK") == ["lights active"]
+    with pytest.raises(ModesModelError) as caught:
+        import_modes(model.replace("lights: active", "lights: active.ON"), "lab.yaml")
+    assert caught.value.render().startswith(
+        "lab.yaml:10:17: error: part 'lights' of 'lab' is not in the model, so it has no mode ON"
+    )

@@ -13,8 +13,9 @@
   bindings take as inactive, with a warning) is a `lifecycle` binding on that node, or on
   every node under that subsystem, and the system layer `excludes` that part's modes.
 - `rules:` (if the system's target is X and a part is in state S, go to Y) become context
-  rules on the part's lifecycle state where the language can say them exactly; the others
-  are warnings naming the rule, and a comment in the output: nothing is dropped silently.
+  rules on the part's lifecycle state and parameters (held 1 s: a part on its way does not
+  count) when Y is inactive; the others are warnings naming the rule, and a comment in the
+  output with the closest rule: nothing is dropped silently.
 """
 
 from __future__ import annotations
