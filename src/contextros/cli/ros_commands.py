@@ -19,6 +19,12 @@ from typing import TYPE_CHECKING, Any
 
 from contextros.cli import exits
 from contextros.cli.answered_in_child import INTERRUPTED, answered_in_child
+from contextros.cli.binding_status import (
+    actual_line,
+    binding_rows,
+    drift_lines,
+    drift_record_line,
+)
 from contextros.cli.option_types import ACTIVATION_TIMEOUT, MAX_TIMEOUT, Count, Seconds
 from contextros.cli.ros_arguments import namespace_problem, rclpy_arguments
 from contextros.errors import LayerError
@@ -581,16 +587,8 @@ def _registry_as_text(data: dict[str, Any]) -> str:
             _table(["RULE", "VALUE", "IN FORCE", "HOLD", "READS", "LAST"], _rule_rows(data)),
         ]
     if data["bindings"]:
-        rows = [
-            [
-                b["layer"],
-                b["node"],
-                f"{b['parameter']} = {b['value']}" if b["kind"] == "parameter" else b["value"],
-                ("ok: " if b["ok"] else "FAILED: ") + b["last_result"] if b["last_result"] else "-",
-            ]
-            for b in data["bindings"]
-        ]
-        parts += ["", _table(["BINDING", "NODE", "SETS", "LAST RESULT"], rows)]
+        header, rows = binding_rows(data)
+        parts += ["", actual_line(data), _table(header, rows), *drift_lines(data)]
     return "\n".join(parts)
 
 
@@ -641,15 +639,17 @@ def _watch(args: argparse.Namespace) -> int:
     from contextros_interfaces.msg import LayerState, ParticipantStatus
     from rclpy.node import Node
 
+    from contextros.cli.binding_status import DriftWatch
     from contextros.cli.exits import output_gone
     from contextros.cli.watching import SwitchWatch
     from contextros.ros import STATE_QOS, STATE_TOPIC, STATUS_QOS, STATUS_TOPIC, spin_nodes
-    from contextros.ros.messages import declaration_from_msg, stamp_to_seconds
+    from contextros.ros.messages import binding_to_dict, declaration_from_msg, stamp_to_seconds
     from contextros.ros.registry_polling import RegistryPoller
     from contextros.ros.topics import QUERY_SERVICE
 
     node = Node(f"contextros_watch_{os.getpid()}")
     watch = SwitchWatch(started=time.time())
+    drifts = DriftWatch()
 
     def show(records: list[dict[str, Any]]) -> None:
         for record in records:
@@ -686,6 +686,7 @@ def _watch(args: argparse.Namespace) -> int:
     def on_registry(answer: Any, asked: float) -> None:
         nodes = {p.node: tuple(p.hosted_nodes) for p in answer.participants}
         show(watch.registry(nodes, asked, wall=time.time()))
+        show(drifts.bindings([binding_to_dict(b) for b in answer.bindings]))
 
     def on_tick() -> None:
         show(watch.tick(time.time()))
@@ -714,7 +715,9 @@ def _print_watch(as_json: bool, record: dict[str, Any]) -> None:
         return
     event = record["event"]
     epoch = f"epoch {record.get('epoch', 0):>6}"
-    if event == "node":
+    if event in ("drift", "drift-over"):
+        line = _shown(drift_record_line(record))
+    elif event == "node":
         line = f"node {_shown(record['node'])} is here"
     elif event == "node-left":
         gone = "dropped by the manager" if record.get("dropped") else "left"

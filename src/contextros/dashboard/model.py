@@ -217,6 +217,8 @@ class DashboardModel:
             ],
             "rules": registry.get("rules", []),
             "bindings": registry.get("bindings", []),
+            # The layers whose bindings all hold on the nodes: target (`active`) vs actual.
+            "actual": registry.get("actual", []),
             "layers": registry.get("layers", []),
             "conflicts": registry.get("conflicts", []),
             "registry_age": None if not robot.registry_at else round(now - robot.registry_at, 2),

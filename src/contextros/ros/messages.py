@@ -282,33 +282,25 @@ def registry_to_dict(registry: Any) -> dict[str, Any]:
             }
             for rule in registry.rules
         ],
-        "bindings": [
-            {
-                "layer": binding.layer,
-                "kind": binding.kind,
-                "node": binding.node,
-                "parameter": binding.parameter,
-                "value": binding.value,
-                "where": binding.where,
-                "ok": binding.ok,
-                "last_result": binding.last_result,
-                "last_time": (
-                    binding.last_time.sec + binding.last_time.nanosec * 1e-9
-                    if binding.last_result
-                    else None
-                ),
-                **_binding_actual(binding),
-            }
-            for binding in registry.bindings
-        ],
+        "bindings": [binding_to_dict(binding) for binding in registry.bindings],
         # The layers whose bindings all hold on the nodes (docs/ros-integration.md).
         "actual": layers_holding((b.layer, b.holds) for b in registry.bindings),
     }
 
 
-def _binding_actual(binding: Any) -> dict[str, Any]:
-    """What the manager read on a binding's node, and its drift."""
+def binding_to_dict(binding: Any) -> dict[str, Any]:
+    """A BindingInfo as plain data: what it sets, its last result, what the manager read on
+    its node, and its drift."""
     return {
+        "layer": binding.layer,
+        "kind": binding.kind,
+        "node": binding.node,
+        "parameter": binding.parameter,
+        "value": binding.value,
+        "where": binding.where,
+        "ok": binding.ok,
+        "last_result": binding.last_result,
+        "last_time": stamp_to_seconds(binding.last_time) if binding.last_result else None,
         "policy": binding.policy or "report",
         "in_force": binding.in_force,
         "observed": binding.observed,

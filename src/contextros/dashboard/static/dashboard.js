@@ -87,13 +87,37 @@ function renderRobot(robot) {
       r.last_firing ? `${r.last_firing}: ${r.last_outcome}` : "-"]),
     "rules", "the manager runs no rules"));
 
-  section.append(el("h3", { text: "Bindings" }), table(
-    ["layer", "node", "sets", "last result"],
+  section.append(el("h3", { text: "Bindings" }), actualLine(robot), table(
+    ["layer", "node", "sets", "on drift", "seen on the node", "last result"],
     robot.bindings.map((b) => [b.layer, b.node,
       b.kind === "parameter" ? `${b.parameter} = ${b.value}` : `lifecycle ${b.value}`,
+      b.policy || "report", seenCell(b),
       b.last_result ? el("span", { cls: b.ok ? "" : "error", text: `${b.ok ? "ok" : "FAILED"}: ${b.last_result}` }) : "-"]),
     "bindings", "no parameter or lifecycle bindings"));
   return section;
+}
+
+// Target (the active layers that set something) against actual (the layers whose bindings
+// all hold on the nodes).
+function actualLine(robot) {
+  if (!robot.bindings.length) return "";
+  const bound = new Set(robot.bindings.map((b) => b.layer));
+  const target = robot.active.filter((name) => bound.has(name));
+  const actual = robot.actual ?? [];
+  const same = [...target].sort().join() === [...actual].sort().join();
+  return el("div", { cls: "summary", "data-testid": "actual" },
+    el("span", { text: `target [${target.join(", ") || "none"}]` }),
+    el("span", { text: `actual [${actual.join(", ") || "none"}]` }),
+    badge(same ? "as targeted" : "differs", same ? "ok" : "bad", "actual-state"));
+}
+
+// What the manager read on the node; a drift with since when and what was done about it.
+function seenCell(b) {
+  if (!b.observed) return "-";
+  if (!b.drifted) return el("span", { text: b.holds ? `${b.observed} (holds)` : b.observed });
+  const action = b.drift_action ? `; ${b.drift_action}` : "";
+  return el("span", { cls: "error", "data-testid": "drift",
+    text: `DRIFTED: ${b.observed} since ${clockTime(b.drifted_since)}${action}` });
 }
 
 // A switch's wall-clock time to the millisecond (switches come within ms of each other).
