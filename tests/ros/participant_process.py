@@ -32,6 +32,14 @@ LAYERS = {
     "Rubble": Layer("Rubble", after=("Flooded",)),
     "Flight": Layer("Flight"),
     "Flooded": Layer("Flooded"),
+    # A hierarchy three levels deep (issue 28): a mission implies flying, which implies the
+    # propulsion and the high-resolution camera.
+    "Mission": Layer("Mission", implies=("Airborne",)),
+    "Airborne": Layer("Airborne", implies=("Propulsion", "CameraHigh")),
+    "Propulsion": Layer("Propulsion"),
+    "CameraHigh": Layer("CameraHigh", group="camera"),
+    "CameraLow": Layer("CameraLow", group="camera"),
+    "Survey": Layer("Survey", implies=("CameraHigh",)),
 }
 DEFAULT_LAYERS = ("Indoor", "Outdoor", "Night", "Slow", "Fast", "Gps")
 

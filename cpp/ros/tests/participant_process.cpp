@@ -8,7 +8,8 @@
 // --also node takes it over) and prints `dropped-first`; `quit` leaves like SIGINT / SIGTERM
 // do (leaving=true).
 //
-// Options: --name NAME (required), --layers A,B (the layers it announces; default all),
+// Options: --name NAME (required), --layers A,B (the layers it announces; default the six of
+// participant_process.py's DEFAULT_LAYERS),
 // --heartbeat SECONDS, --refuse LAYER (after announcing, LAYER is redefined to require a
 // layer nobody has: the manager does not know, so this node refuses any state with it),
 // --also NAME (a second node of this process, hosted by the first, announcing Night),
@@ -69,9 +70,20 @@ const std::vector<LayerInfo>& test_layers() {
       {"Indoor", {}, {}, {}, "location"}, {"Outdoor", {}, {}, {}, "location"},
       {"Night", {}, {}, {}, ""},          {"Slow", {"Fast"}, {}, {}, ""},
       {"Fast", {}, {}, {}, ""},           {"Gps", {}, {"Outdoor"}, {}, ""},
+      // A hierarchy (issue 28): Mission implies Airborne, which implies Propulsion, CameraHigh.
+      {"Mission", {}, {}, {}, "", {"Airborne"}},
+      {"Airborne", {}, {}, {}, "", {"Propulsion", "CameraHigh"}},
+      {"Propulsion", {}, {}, {}, ""},
+      {"CameraHigh", {}, {}, {}, "camera"},
+      {"CameraLow", {}, {}, {}, "camera"},
+      {"Survey", {}, {}, {}, "", {"CameraHigh"}},
   };
   return layers;
 }
+
+// What a node announces without --layers (the hierarchy's layers only when asked for).
+const std::vector<std::string> default_layers = {"Indoor", "Outdoor", "Night",
+                                                 "Slow",   "Fast",    "Gps"};
 
 bool define_test_layers() {
   for (const LayerInfo& layer : test_layers()) {
@@ -183,7 +195,7 @@ int main(int argc, char** argv) {
   std::optional<contextros::ros::RclNode> node;
   node.emplace(context, options.name);
   contextros::ros::ParticipantOptions participant_options;
-  participant_options.layers = options.layers;
+  participant_options.layers = options.layers ? options.layers : default_layers;
   participant_options.heartbeat_period = std::chrono::duration_cast<contextros::ros::Clock::duration>(
       std::chrono::duration<double>(options.heartbeat));
   std::optional<contextros::ros::ContextNode> follower;
