@@ -4,18 +4,26 @@ parameter that another client sets; a node that is absent leaves its rule withou
 
 from __future__ import annotations
 
+import json
+import signal
+import subprocess
+import sys
 import time
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
 from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
+from rclpy.node import Node
 
+from contextros.recording import read_recording
 from contextros.ros import LayerClient
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
+from tests.ros.test_cli import contextros
 from tests.ros.test_ros_bindings import call
 
 # The plain nodes run in /drivers (`/drivers/base`, `/drivers/propeller`), the manager in
@@ -57,13 +65,13 @@ def transition(client: LayerClient, transition_id: int) -> None:
     assert response.success, transition_id
 
 
-def set_max_speed(client: LayerClient, value: float) -> None:
+def set_max_speed(client: LayerClient, value: float, node: str = "/drivers/base") -> None:
     parameter = Parameter(
         name="max_speed",
         value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value),
     )
     request = SetParameters.Request(parameters=[parameter])
-    (result,) = call(client, SetParameters, "/drivers/base/set_parameters", request).results
+    (result,) = call(client, SetParameters, f"{node}/set_parameters", request).results
     assert result.successful, result.reason
 
 
@@ -128,3 +136,88 @@ def test_a_rule_on_an_absent_node_has_no_value(client: LayerClient, system: Chil
         "/drivers/base" in line
         for line in system.lines
     ), system.output()
+
+
+def test_a_recording_replays_the_graph_rules_decisions(client: LayerClient, tmp_path: Path) -> None:
+    """`contextros record --rules` keeps what the graph conditions saw (the events and the
+    nodes' first answers): `rules replay --strict` makes the live manager's switches."""
+    rules = tmp_path / "robot.layers"
+    rules.write_text(RULES, encoding="utf-8")
+    output, log = tmp_path / "run.mcap", tmp_path / "record.log"
+    remap = ("--ros-args", "-r", "__ns:=/rec")
+    group = ProcessGroup()
+    node = Node("graph_rules_recording_client", namespace="/rec")
+    rec = LayerClient(node, requester="pytest")
+    recorder = None
+    try:
+        group.start(
+            "rec plain nodes",
+            [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/rec/drivers"],
+        )
+        group.participant("g2", *remap)
+        group.manager("--liveness-timeout", LIVENESS, "--rules", str(rules), *remap)
+        rec.wait_for_manager(15.0)
+        wait_registry(rec, lambda r: "Slow" in r.active_layers, 15.0, "Slow from the first state")
+        # Recorded as a user records a running robot: from after the manager's start.
+        command = ["record", str(output), "--rules", str(rules), "--namespace", "/rec"]
+        with log.open("w") as stream:
+            recorder = subprocess.Popen(
+                [sys.executable, "-m", "contextros", *command], stdout=stream, stderr=stream
+            )
+        deadline = time.monotonic() + 20
+        while not output.exists() or not {
+            "/rec/contextros/state",
+            "/rec/drivers/propeller/get_state",
+            "/rec/drivers/base/get_parameters",
+        } <= {m.topic for m in read_recording(output, truncated=lambda damage: None)}:
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.1)
+        propeller = "/rec/drivers/propeller/change_state"
+        for step in (Transition.TRANSITION_CONFIGURE, Transition.TRANSITION_ACTIVATE):
+            call(rec, ChangeState, propeller, ChangeState.Request(transition=Transition(id=step)))
+        wait_registry(rec, lambda r: "Slow" not in r.active_layers, 10.0, "Slow off")
+        set_max_speed(rec, 0.3, "/rec/drivers/base")
+        wait_registry(rec, lambda r: "Night" in r.active_layers, 10.0, "Night on")
+        deactivate = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_DEACTIVATE))
+        call(rec, ChangeState, propeller, deactivate)
+        wait_registry(rec, lambda r: "Slow" in r.active_layers, 10.0, "Slow on again")
+        set_max_speed(rec, 2.0, "/rec/drivers/base")
+        wait_registry(rec, lambda r: "Night" not in r.active_layers, 10.0, "Night off")
+        time.sleep(0.5)
+        recorder.send_signal(signal.SIGINT)
+        assert recorder.wait(20) == 0, log.read_text()
+    finally:
+        if recorder is not None and recorder.poll() is None:
+            recorder.kill()
+        group.kill_all()
+        node.destroy_node()
+    channels = {m.topic for m in read_recording(output)}
+    assert {
+        "/parameter_events",
+        "/rec/drivers/base/get_parameters",
+        "/rec/drivers/propeller/transition_event",
+        "/rec/drivers/propeller/get_state",
+    } <= channels, channels
+    replayed = contextros(
+        "rules",
+        "replay",
+        "--strict",
+        "--json",
+        str(output),
+        "--rules",
+        str(rules),
+        "--namespace",
+        "/rec",
+    )
+    assert replayed.returncode == 0, replayed.stdout + replayed.stderr
+    report = json.loads(replayed.stdout)
+    by_rules = [
+        (s["requester"], s["active"]) for s in report["switches"] if s["requester"] != "recording"
+    ]
+    assert by_rules[-4:] == [
+        ("rule Degraded", []),
+        ("rule Careful", ["Night"]),
+        ("rule Degraded", ["Night", "Slow"]),
+        ("rule Careful", ["Slow"]),
+    ], report
+    assert report["differences"] == [], report

@@ -270,3 +270,44 @@ def test_transition_events_give_the_goal_state_and_unknown_is_no_value() -> None
     assert graph.absent("/robot/drivers/propeller") == [
         GraphInput("lifecycle drivers/propeller", None)
     ]
+
+
+# -- the replay -----------------------------------------------------------------------------
+
+
+def test_the_replay_reads_recorded_answers_and_events_as_the_manager_does() -> None:
+    from contextros.rules.replay import RuleReplay
+
+    rules = ruleset(("D", "SafeMode while lifecycle drivers/propeller != active for 0.1 s"))
+    replay = RuleReplay(rules, start=0.0, namespace="/robot")
+
+    def goal(state_id: int) -> SimpleNamespace:
+        return SimpleNamespace(goal_state=SimpleNamespace(id=state_id))
+
+    # The node's answer when it appeared (unconfigured), then its transitions.
+    assert replay.graph_message(0.0, "/robot/drivers/propeller/get_state", goal(1))
+    assert replay.graph_message(1.0, "/robot/drivers/propeller/transition_event", goal(3))
+    assert replay.graph_message(2.0, "/robot/drivers/propeller/transition_event", goal(14))
+    assert not replay.graph_message(2.5, "/drivers/propeller/transition_event", goal(3))
+    replay.finish(3.0)
+    assert [(round(s.time, 2), s.active, s.requester) for s in replay.result.switches] == [
+        (0.1, ("SafeMode",), "rule D"),
+        (1.1, (), "rule D"),
+        (2.1, ("SafeMode",), "rule D"),
+    ]
+    assert replay.result.first_inputs == {"lifecycle drivers/propeller": 0.0}
+
+
+def test_the_replay_plots_a_parameter_and_notes_a_value_it_cannot_compare() -> None:
+    from contextros.rules.replay import RuleReplay
+
+    rules = ruleset(("S", "Careful while param controller.max_speed < 0.5"))
+    replay = RuleReplay(rules, start=0.0)
+    speed = parameter("max_speed", 3, double_value=0.3)
+    replay.graph_message(0.0, "/controller/get_parameters", event("/controller", new=[speed]))
+    text = parameter("max_speed", 4, string_value="fast")
+    replay.graph_message(1.0, "/parameter_events", event("/controller", changed=[text]))
+    replay.finish(2.0)
+    assert [s.active for s in replay.result.switches] == [("Careful",)]
+    assert replay.result.signals == {"param controller.max_speed": [(0.0, 0.3)]}
+    assert any("is a string ('fast')" in note for note in replay.result.notes)

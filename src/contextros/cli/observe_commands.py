@@ -130,34 +130,36 @@ def run_record(args: argparse.Namespace) -> int:
         from mcap.writer import Writer  # noqa: F401 - only whether it is there
     except ImportError as error:
         return _missing("record", error)
-    topics = _record_topics(args)
-    if topics is None:
+    selected = _record_topics(args)
+    if selected is None:
         return USAGE
     try:
         with ros_session(args):
-            return _record(args, topics)
+            return _record(args, *selected)
     except RosArgumentsError as error:
         return usage_error(error)
 
 
-def _record_topics(args: argparse.Namespace) -> dict[str, Any] | None:
-    from contextros.ros.recorder import PROTOCOL_TOPICS
+def _record_topics(args: argparse.Namespace) -> tuple[dict[str, Any], Any] | None:
+    """The topics to record, and the rules whose graph conditions' nodes to follow."""
+    from contextros.ros.recorder import PROTOCOL_TOPICS, rule_topics
     from contextros.ros.rules import RULE_QOS
 
     topics: dict[str, Any] = dict(PROTOCOL_TOPICS)
+    rules: tuple[Any, ...] = ()
     if args.rules:
         from contextros.rules import RuleSet
 
         try:
-            rules = RuleSet.from_files(args.rules)
+            rules = RuleSet.from_files(args.rules).rules
         except LayerError as error:
             print(f"contextros record: the layer files have errors:\n{error}", file=sys.stderr)
             return None
-        for topic in rules.topics():
-            topics.setdefault(_as_manager_topic(topic), RULE_QOS)
+        for topic, qos in rule_topics(rules).items():
+            topics.setdefault(_as_manager_topic(topic), qos)
     for topic in args.topic:
         topics.setdefault(topic, RULE_QOS)
-    return topics
+    return topics, rules
 
 
 def _as_manager_topic(topic: str) -> str:
@@ -165,7 +167,7 @@ def _as_manager_topic(topic: str) -> str:
     return f"{MANAGER_NODE}/{topic[2:]}" if topic.startswith("~/") else topic
 
 
-def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
+def _record(args: argparse.Namespace, topics: dict[str, Any], rules: Any) -> int:
     from rclpy.node import Node
 
     from contextros.cli.ros_commands import TEARDOWN_LIMIT
@@ -174,7 +176,7 @@ def _record(args: argparse.Namespace, topics: dict[str, Any]) -> int:
 
     node = Node(f"contextros_record_{os.getpid()}")
     try:
-        recorder = Recorder(node, args.output, topics)
+        recorder = Recorder(node, args.output, topics, graph_rules=rules)
     except TopicNameError as error:
         print(f"contextros record: {error}", file=sys.stderr)
         return USAGE
@@ -368,12 +370,15 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
         layer_files=declarations_from_files(args.rules),
         start=start,
         active=active,
+        namespace=namespace,
     )
     recorded = []
     seen_first = False
     for item in read_recording(args.recording, truncated=lambda damage: None):
         if item.topic in by_topic:
             replay.message(item.time, by_topic[item.topic], item.message)
+        elif replay.graph_message(item.time, item.topic, item.message):
+            pass  # a lifecycle state or parameter the rules read
         elif item.topic == state_topic:
             state = item.message
             requester = str(state.requester)

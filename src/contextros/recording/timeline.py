@@ -11,6 +11,7 @@ from contextros.language.rules import (
     Comparison,
     Condition,
     FieldRef,
+    GraphRef,
     Literal,
     Not,
     relaxed,
@@ -36,9 +37,9 @@ def thresholds(rules: RuleSet) -> dict[str, list[tuple[str, float, float]]]:
 def _limit(comparison: Comparison) -> tuple[str, float] | None:
     """(field, number) of a comparison of a field against a number."""
     left, right = comparison.left, comparison.right
-    if isinstance(left, FieldRef) and isinstance(right, Literal):
+    if isinstance(left, FieldRef | GraphRef) and isinstance(right, Literal):
         field, value = left, right.value
-    elif isinstance(right, FieldRef) and isinstance(left, Literal):
+    elif isinstance(right, FieldRef | GraphRef) and isinstance(left, Literal):
         field, value = right, left.value
     else:
         return None
@@ -83,7 +84,9 @@ def write_timeline(
                     held, color="tab:orange", linestyle=":", label=f"{rule} with hysteresis"
                 )
         for rule, begin, finish in result.holds:
-            if any(ref.text == name for r in rules.rules if r.name == rule for ref in r.fields):
+            read = [ref.text for r in rules.rules if r.name == rule for ref in r.fields]
+            read += [ref.text for r in rules.rules if r.name == rule for ref in r.graph]
+            if name in read:
                 axis.axvspan(begin - start, finish - start, color="tab:green", alpha=0.2)
         axis.set_ylabel(name, fontsize=8)
         axis.legend(loc="upper right", fontsize=7)

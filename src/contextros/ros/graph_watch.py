@@ -9,6 +9,11 @@ current state; a ParameterEvent with the values as new parameters) on the channe
 has no values (a TransitionEvent to `unknown`, a ParameterEvent deleting them). The manager
 reads them with `contextros.rules.graph.GraphInputs`; `contextros record` writes them, so the
 replay reads the same (contextros.rules.graph says why).
+
+A node is asked only once its event publisher is on the graph (and the caller listens to
+that topic, `listening`): a change between the answer and the first event heard would be
+lost. An answer to a request sent before an event of the node (`event_seen`) may be older
+than that event: it is dropped and the node asked again.
 """
 
 from __future__ import annotations
@@ -23,7 +28,12 @@ from rcl_interfaces.msg import Parameter, ParameterEvent
 from rcl_interfaces.srv import GetParameters
 from rclpy.node import Node
 
-from contextros.rules.graph import GET_PARAMETERS, GET_STATE
+from contextros.rules.graph import (
+    GET_PARAMETERS,
+    GET_STATE,
+    PARAMETER_EVENTS,
+    TRANSITION_EVENT,
+)
 
 # Seconds a node may be on the graph without the service the rules need before that is
 # logged (a node that is not a lifecycle node, say): its services appear with it.
@@ -37,11 +47,12 @@ Deliver = Callable[[str, Any], None]  # (channel, message)
 class _Fetch:
     """One service of one node: asked once the node is on the graph, again if it returns."""
 
-    def __init__(self, node: Node, fqn: str, channel: str, client: Any) -> None:
+    def __init__(self, node: Node, fqn: str, channel: str, client: Any, events: str) -> None:
         self.node = node
         self.fqn = fqn
         self.channel = channel
         self.client = client
+        self.events = events  # the topic of the node's events
         self.done = False  # answered since the node appeared
         self.pending: Any = None  # the request's future
         self.sent = 0.0
@@ -61,17 +72,21 @@ class GraphWatch:
         deliver: Deliver,
         *,
         period: float = 0.2,
+        listening: Callable[[str], bool] = lambda topic: True,
     ) -> None:
         self.node = node
         self._deliver = deliver
+        self._listening = listening
         self._parameters = {fqn: list(names) for fqn, names in parameters.items()}
         self._fetches: list[_Fetch] = []
         for fqn in lifecycle_nodes:
             client: Any = node.create_client(GetState, f"{fqn}/get_state")
-            self._fetches.append(_Fetch(node, fqn, f"{fqn}/{GET_STATE}", client))
+            events = f"{fqn}/{TRANSITION_EVENT}"
+            self._fetches.append(_Fetch(node, fqn, f"{fqn}/{GET_STATE}", client, events))
         for fqn in self._parameters:
             client = node.create_client(GetParameters, f"{fqn}/get_parameters")
-            self._fetches.append(_Fetch(node, fqn, f"{fqn}/{GET_PARAMETERS}", client))
+            channel = f"{fqn}/{GET_PARAMETERS}"
+            self._fetches.append(_Fetch(node, fqn, channel, client, PARAMETER_EVENTS))
         self._present: set[str] = set()
         self._since: dict[str, float] = {}  # node -> when it appeared
         self._timer = node.create_timer(period, self.poll)
@@ -102,10 +117,20 @@ class GraphWatch:
             if not fetch.client.service_is_ready():
                 self._missing(fetch, now)
                 continue
-            self._ask(fetch, now)
+            if self._events_heard(fetch):
+                self._ask(fetch, now)
         for fqn in self._present - present:
             self._since.pop(fqn, None)
         self._present = {fetch.fqn for fetch in self._fetches if fetch.fqn in present}
+
+    def _events_heard(self, fetch: _Fetch) -> bool:
+        """Whether the node's events reach this node yet (module docstring)."""
+        publishers = self.node.get_publishers_info_by_topic(fetch.events)
+        found = any(
+            f"{info.node_namespace.rstrip('/')}/{info.node_name}" == fetch.fqn
+            for info in publishers
+        )
+        return found and self._listening(fetch.events)
 
     def _ask(self, fetch: _Fetch, now: float) -> None:
         if fetch.channel.endswith(GET_STATE):

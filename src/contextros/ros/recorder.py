@@ -1,5 +1,11 @@
 """`contextros record`: the protocol's topics and the rules' input topics into MCAP.
 
+For rules on the ROS graph's state (`lifecycle NODE`, `param NODE.PARAMETER`) that is
+`/parameter_events` and each lifecycle node's `transition_event` topic, plus what the nodes'
+get_state / get_parameters services answer when they appear (and that they left), written as
+events on the channels `NODE/get_state` / `NODE/get_parameters` (`GraphWatch`), so the
+replay has the values the manager had from the start (contextros.rules.graph).
+
 Each topic is subscribed once the ROS graph shows its type, raw (the serialized CDR bytes
 are written as they arrived, as rosbag2 does), with its message definition as a `ros2msg`
 schema, so `ros2 bag`, Foxglove and `contextros rules replay` read the file. Log times are
@@ -12,15 +18,20 @@ from __future__ import annotations
 
 import time
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, BinaryIO
 
 from rclpy.node import Node
-from rclpy.qos import QoSProfile
+from rclpy.qos import QoSProfile, qos_profile_parameter_events
+from rclpy.serialization import serialize_message
 
-from contextros.recording.definitions import DefinitionError, message_definition
+from contextros.language.rules import RuleDecl
+from contextros.recording.definitions import DefinitionError, message_definition, type_of
 from contextros.recording.writer import CHUNK_PERIOD, RecordingWriter
+from contextros.ros.graph_watch import GraphWatch
 from contextros.ros.message_types import message_class
+from contextros.ros.rules import RULE_QOS, TRANSITION_QOS
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -31,6 +42,7 @@ from contextros.ros.topics import (
     STATUS_QOS,
     STATUS_TOPIC,
 )
+from contextros.rules.graph import PARAMETER_EVENTS, GraphInputs, graph_topics
 
 
 def _deep(qos: QoSProfile) -> QoSProfile:
@@ -53,8 +65,20 @@ PROTOCOL_TOPICS: dict[str, QoSProfile] = {
 }
 
 
+def rule_topics(rules: Sequence[RuleDecl]) -> dict[str, QoSProfile]:
+    """The topics `rules` read, named as they name them (`~/x` is the manager's, not the
+    recorder's: the caller resolves it), with the QoS to record each with."""
+    topics = {ref.topic: RULE_QOS for rule in rules for ref in rule.fields}
+    for topic in graph_topics(rules):
+        topics[topic] = (
+            qos_profile_parameter_events if topic == PARAMETER_EVENTS else TRANSITION_QOS
+        )
+    return topics
+
+
 class Recorder:
-    """Records `topics` (names relative to `node`'s namespace, or absolute) into `output`."""
+    """Records `topics` (names relative to `node`'s namespace, or absolute) into `output`,
+    and what the nodes `graph_rules` read the state of answered (module docstring)."""
 
     def __init__(
         self,
@@ -63,6 +87,7 @@ class Recorder:
         topics: dict[str, QoSProfile],
         *,
         discovery_period: float = 0.1,
+        graph_rules: Sequence[RuleDecl] = (),
     ) -> None:
         self.node = node
         self.output = output
@@ -72,12 +97,27 @@ class Recorder:
         self._schemas: dict[str, int] = {}
         self._refused: dict[str, str] = {}  # topic -> the type it was refused with
         self._subscriptions: list[Any] = []
+        self._by_topic: dict[str, Any] = {}  # resolved topic -> its subscription
         self.counts: Counter[str] = Counter()
         self._sequence = 0
         self._finished = False
         self._discovery = node.create_timer(discovery_period, self._discover)
         self._chunks = node.create_timer(CHUNK_PERIOD, self._close_chunk)
         self._discover()
+        self._fetched: dict[str, int] = {}  # channel name -> id, of the answers written
+        graph = GraphInputs(graph_rules, lambda name: _resolved(node, name))
+        self._watch = (
+            GraphWatch(
+                node,
+                list(graph.lifecycle),
+                graph.parameter_nodes(),
+                self._write_fetched,
+                period=discovery_period,
+                listening=self._listening,
+            )
+            if graph.nodes()
+            else None
+        )
 
     @property
     def waiting_for(self) -> list[str]:
@@ -104,11 +144,11 @@ class Recorder:
             return self._refuse(topic, type_name, str(error))
         del self._unbound[topic]
         channel = self._writer.add_channel(topic, "cdr", schema)
-        self._subscriptions.append(
-            self.node.create_subscription(
-                cls, topic, lambda data, c=channel, t=topic: self._write(c, t, data), qos, raw=True
-            )
+        subscription = self.node.create_subscription(
+            cls, topic, lambda data, c=channel, t=topic: self._write(c, t, data), qos, raw=True
         )
+        self._subscriptions.append(subscription)
+        self._by_topic[topic] = subscription
         self.node.get_logger().info(f"recording {topic} ({type_name})")
         return None
 
@@ -130,6 +170,20 @@ class Recorder:
         self._sequence += 1
         self._writer.add_message(channel, now, data, now, self._sequence)
         self.counts[topic] += 1
+
+    def _listening(self, topic: str) -> bool:
+        """Whether `topic` (resolved) is subscribed and matched with a publisher."""
+        subscription = self._by_topic.get(topic)
+        return subscription is not None and subscription.get_publisher_count() > 0
+
+    def _write_fetched(self, channel_name: str, message: Any) -> None:
+        """A node's answer (or its absence) as an event, serialized as it would arrive."""
+        if self._finished:
+            return
+        if channel_name not in self._fetched:
+            schema = self._schema(type_of(message))
+            self._fetched[channel_name] = self._writer.add_channel(channel_name, "cdr", schema)
+        self._write(self._fetched[channel_name], channel_name, serialize_message(message))
 
     def _close_chunk(self) -> None:
         if not self._finished:

@@ -32,6 +32,7 @@ from contextros.protocol.manager import RECOVERY_REQUESTER, ManagerProtocol, Man
 from contextros.protocol.relations import LayerDeclaration, merge_declarations
 from contextros.rules.engine import Firing, RuleEngine
 from contextros.rules.firings import FiringQueue, asked
+from contextros.rules.graph import GraphInputs, resolve_name
 from contextros.rules.ruleset import RuleSet
 
 MANAGER_TICK = 0.05  # the manager node's timer period (LayerManagerNode's tick_period)
@@ -79,7 +80,9 @@ class RuleReplay:
     """Feed it messages (`message`) and recorded manual states (`manual`) in time order,
     then `finish`; `result` holds the switches it made. `declarations` are the
     participants' (from the recorded statuses), `layer_files` the layer files' relations,
-    as `contextros manager --layers` takes them (`declarations_from_files`)."""
+    as `contextros manager --layers` takes them (`declarations_from_files`). Recorded
+    lifecycle states and parameters go to `graph_message` (names resolved in `namespace`,
+    the live manager's)."""
 
     def __init__(
         self,
@@ -90,9 +93,11 @@ class RuleReplay:
         start: float,
         active: Sequence[str] = (),
         tick_period: float = MANAGER_TICK,
+        namespace: str = "/",
     ) -> None:
         self.rules = rules
         self.engine = RuleEngine(rules)
+        self.graph = GraphInputs(rules.rules, lambda name: resolve_name(namespace, name))
         self.result = ReplayResult()
         self._tick_period = tick_period
         self._next_tick = start
@@ -157,6 +162,29 @@ class RuleReplay:
             self.result.notes.append(f"{failure} (at {time:.3f})")
         self.engine.failures.clear()
         self._fire(firings)
+
+    def graph_message(self, time: float, channel: str, message: Any) -> bool:
+        """A recorded message on `channel` (resolved) if it carries lifecycle states or
+        parameters the rules read, as the live manager read them; False if not such a
+        channel (contextros.rules.graph)."""
+        found = self.graph.read(channel, message)
+        if found is None:
+            return False
+        self._advance(time)
+        firings = []
+        for item in found:
+            self.result.first_inputs.setdefault(item.source, time)
+            value = item.value
+            if isinstance(value, int | float) and not isinstance(value, bool):
+                self.result.signals.setdefault(item.source, []).append((time, float(value)))
+            firings += self.engine.on_value(item.source, value, time)
+        self.result.notes += [f"{problem} (at {time:.3f})" for problem in self.graph.problems]
+        self.graph.problems.clear()
+        for failure in self.engine.failures:
+            self.result.notes.append(f"{failure} (at {time:.3f})")
+        self.engine.failures.clear()
+        self._fire(firings)
+        return True
 
     def manual(self, time: float, active: Sequence[str], requester: str, reason: str) -> None:
         """A state of the recording that no rule caused: the same command again."""
@@ -373,14 +401,16 @@ def _unrecorded_cause(
     rule = next((r for r in rules.rules if f"rule {r.name}" == live.requester), None)
     if apart <= 0 or rule is None:
         return False
-    firsts = [result.first_inputs.get(ref.topic) for ref in rule.fields]
+    # Its inputs: topics, and lifecycle states or parameters (first recorded when the
+    # recorder found their node, possibly after the manager did).
+    inputs = list(dict.fromkeys([*(r.topic for r in rule.fields), *(r.text for r in rule.graph)]))
+    firsts = [result.first_inputs.get(name) for name in inputs]
     known = [first for first in firsts if first is not None]
     if not known or len(known) < len(firsts) or live.time >= max(known) + rule.hold:
         return False
     result.notes.append(
         f"{_state(live.active)} at {live.time - start:.3f} s came {apart:.3f} s later in the "
-        f"replay: the recording has no reading of "
-        f"{', '.join(dict.fromkeys(ref.topic for ref in rule.fields))} from before "
+        f"replay: the recording has no reading of {', '.join(inputs)} from before "
         f"{max(known) - start:.3f} s, the manager had (the recorder subscribed after it)"
     )
     return True
