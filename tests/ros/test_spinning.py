@@ -91,3 +91,72 @@ def test_a_signal_while_the_spinner_is_joined_does_not_leave_it_running() -> Non
     )
     assert done.stdout.split("\n")[0] == "BrokenPipeError []", done.stdout + done.stderr
     assert done.returncode == 0, done.stderr
+
+
+LEAN_BY_DEFAULT = textwrap.dedent(
+    """
+    import sys
+    import rclpy
+    from rclpy.node import Node
+    from std_msgs.msg import String
+    from contextros.ros import spin_nodes
+
+    LEAN = {lean}
+    rclpy.init()
+    node = Node("spinning_lean_test")
+    seen = []
+
+    def tick():
+        # WaitLoop sets no node.executor; rclpy's executor does.
+        seen.append("lean" if node.executor is None else "rclpy")
+        if len(seen) == 3:  # a coroutine callback arrives while spinning
+            node.create_subscription(String, "spinning_lean/topic", on_message, 10)
+        if len(seen) > 3:
+            publisher.publish(String(data="hello"))
+
+    async def on_message(message):
+        seen.append("awaited " + message.data)
+
+    publisher = node.create_publisher(String, "spinning_lean/topic", 10)
+    node.create_timer(0.02, tick)
+    try:
+        until = lambda: any(s.startswith("awaited") for s in seen)
+        spin_nodes([node], until=until, timeout=10, lean=LEAN)
+    except Exception as error:
+        print(type(error).__name__, error, flush=True)
+    print(" ".join(dict.fromkeys(seen)), flush=True)
+    rclpy.try_shutdown()
+    """
+)
+
+
+def spin_lean(lean: bool | None) -> subprocess.CompletedProcess[str]:
+    program = LEAN_BY_DEFAULT.format(lean=lean)
+    return subprocess.run(
+        [sys.executable, "-c", program], capture_output=True, text=True, timeout=60
+    )
+
+
+def test_spin_nodes_spins_lean_until_a_node_has_what_only_rclpy_serves() -> None:
+    """By default WaitLoop spins the nodes; a coroutine callback created while spinning
+    hands them to rclpy's executor (which awaits it), with one log line naming it."""
+    done = spin_lean(None)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split("\n")[0] == "lean rclpy awaited hello", done.stdout + done.stderr
+    fallbacks = [line for line in done.stderr.splitlines() if "spinning with rclpy" in line]
+    assert len(fallbacks) == 1, done.stderr
+    assert (
+        "node /spinning_lean_test: the subscription /spinning_lean/topic has a coroutine"
+        in (fallbacks[0])
+    )
+
+
+def test_spin_nodes_lean_true_refuses_and_lean_false_is_rclpy_throughout() -> None:
+    done = spin_lean(True)
+    assert done.stdout.split("\n")[0].startswith(
+        "UnsupportedEntityError node /spinning_lean_test: the subscription"
+    ), done.stdout + done.stderr
+    assert "(lean=False)" in done.stdout and "spinning with rclpy" not in done.stderr
+    done = spin_lean(False)
+    assert done.stdout.split("\n")[0] == "rclpy awaited hello", done.stdout + done.stderr
+    assert "spinning with rclpy" not in done.stderr

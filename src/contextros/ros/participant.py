@@ -19,6 +19,7 @@ from typing import Any
 
 from contextros_interfaces.msg import LayerState as LayerStateMsg
 from contextros_interfaces.msg import ParticipantStatus
+from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.node import Node
 
 from contextros.core import (
@@ -46,7 +47,7 @@ from contextros.protocol import (
     StateRejected,
 )
 from contextros.ros.messages import state_from_msg
-from contextros.ros.status_wire import StatusEncoder
+from contextros.ros.status_wire import StateDecoder, StatusEncoder
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -139,32 +140,52 @@ class ContextParticipant:
         self._listeners: list[StateListener] = []
         self._manager_listeners: list[ManagerListener] = []
         self._vetoes: list[Veto] = []
-        # Deferred switches settle on whichever thread closes the critical section; they
-        # are handed back to the executor through this guard condition.
+        # Deferred switches settle on whichever thread closes the critical section, and
+        # vetoes think in a worker thread: both are handed back to the executor through
+        # one guard condition (every entity costs each wake-up of the executor).
         self._deferred: list[tuple[LayerState, SwitchResult]] = []
         self._deferred_lock = threading.Lock()
-        self._settled = node.create_guard_condition(self._on_deferred_settled)
-        # Vetoes think in a worker thread; their answer comes back through this guard.
         self._asking: tuple[int, str] | None = None  # the proposal whose vetoes think
         self._answers: list[tuple[LayerState, str]] = []
         self._answers_lock = threading.Lock()
-        self._answered = node.create_guard_condition(self._on_vetoes_answered)
-        self._status_pub = node.create_publisher(ParticipantStatus, STATUS_TOPIC, STATUS_QOS)
+        self._handed_back = node.create_guard_condition(self._on_handed_back)
+        # rclpy's QoS event handlers (two per publisher and subscription, each waited on
+        # at every wake-up) on the state subscription only: its QoS (reliable, transient
+        # local) is the one a peer would not match; a manager not heard is logged anyway.
+        quiet = SubscriptionEventCallbacks(use_default_callbacks=False)
+        self._status_pub = node.create_publisher(
+            ParticipantStatus,
+            STATUS_TOPIC,
+            STATUS_QOS,
+            event_callbacks=PublisherEventCallbacks(use_default_callbacks=False),
+        )
         self._statuses = StatusEncoder()
+        # States are taken as bytes and decoded once per process (status_wire).
         self._state_sub = node.create_subscription(
-            LayerStateMsg, STATE_TOPIC, self._on_state, STATE_QOS
+            LayerStateMsg, STATE_TOPIC, self._on_state, STATE_QOS, raw=True
         )
         self._heartbeat_sub = node.create_subscription(
-            LayerStateMsg, HEARTBEAT_TOPIC, self._on_state, HEARTBEAT_QOS
+            LayerStateMsg,
+            HEARTBEAT_TOPIC,
+            self._on_state,
+            HEARTBEAT_QOS,
+            raw=True,
+            event_callbacks=quiet,
         )
         self._proposal_sub = node.create_subscription(
-            LayerStateMsg, PROPOSAL_TOPIC, self._on_proposal, PROPOSAL_QOS
+            LayerStateMsg,
+            PROPOSAL_TOPIC,
+            self._on_proposal,
+            PROPOSAL_QOS,
+            raw=True,
+            event_callbacks=quiet,
         )
         self._heartbeat = node.create_timer(heartbeat_period, self._on_heartbeat)
         # Repeats of a new report, shortly after it (a lossy link may have lost it); the
         # timer runs only while repeats are due.
         self._repeat_timer = node.create_timer(0.05, self._on_heartbeat)
         self._repeat_timer.cancel()
+        self._repeating = False  # (asking rclpy costs more than the rest of a report)
         self._run(self.protocol.announce(time.monotonic()))
 
     @property
@@ -240,19 +261,34 @@ class ContextParticipant:
         self.node.destroy_subscription(self._heartbeat_sub)
         self.node.destroy_subscription(self._proposal_sub)
         self.node.destroy_publisher(self._status_pub)
-        self.node.destroy_guard_condition(self._settled)
-        self.node.destroy_guard_condition(self._answered)
+        self.node.destroy_guard_condition(self._handed_back)
 
     # -- executor callbacks -----------------------------------------------------------------
 
-    def _on_state(self, msg: Any) -> None:
-        self._run(self.protocol.receive_state(state_from_msg(msg), time.monotonic()))
+    def _state_of(self, msg: bytes | Any) -> LayerState | None:
+        """The state in a message taken raw (or a `LayerState` message); None if damaged."""
+        if not isinstance(msg, bytes):
+            return state_from_msg(msg)
+        try:
+            return _states.decode(msg)
+        except ValueError as error:
+            self.node.get_logger().warning(
+                f"ignored a layer state: {error}", throttle_duration_sec=10.0
+            )
+            return None
 
-    def _on_proposal(self, msg: Any) -> None:
+    def _on_state(self, msg: bytes | Any) -> None:
+        state = self._state_of(msg)
+        if state is not None:
+            self._run(self.protocol.receive_state(state, time.monotonic()))
+
+    def _on_proposal(self, msg: bytes | Any) -> None:
         """A proposal (repeated every 50 ms while the vote is open): without vetoes the node
         votes at once; with vetoes they are asked once, in a worker thread, and the vote
         follows their answer (`_on_vetoes_answered`)."""
-        proposal = state_from_msg(msg)
+        proposal = self._state_of(msg)
+        if proposal is None:
+            return
         now = time.monotonic()
         self.protocol.critical_section_open = in_critical_section()
         if not self._vetoes or not self.protocol.wants_vote(proposal):
@@ -280,7 +316,11 @@ class ContextParticipant:
         with self._answers_lock:
             self._answers.append((proposal, "; ".join(reasons)))
         with contextlib.suppress(Exception):  # the node was destroyed meanwhile
-            self._answered.trigger()
+            self._handed_back.trigger()
+
+    def _on_handed_back(self) -> None:
+        self._on_deferred_settled()
+        self._on_vetoes_answered()
 
     def _on_vetoes_answered(self) -> None:
         with self._answers_lock:
@@ -324,11 +364,13 @@ class ContextParticipant:
                     self._restore_applied()
                 self._manager_changed(action)
         # Wake up for the next repeat of a report, if one is due; else sleep.
-        if self.protocol.next_repeat is None:
-            if not self._repeat_timer.is_canceled():
+        repeating = self.protocol.next_repeat is not None
+        if repeating != self._repeating:
+            self._repeating = repeating
+            if repeating:
+                self._repeat_timer.reset()
+            else:
                 self._repeat_timer.cancel()
-        elif self._repeat_timer.is_canceled():
-            self._repeat_timer.reset()
 
     def _restore_applied(self) -> None:
         """The manager is back with no newer state: a configuration set while it was lost
@@ -374,7 +416,7 @@ class ContextParticipant:
 
     def _wait_for(self, result: SwitchResult) -> None:
         result.wait()
-        self._settled.trigger()
+        self._handed_back.trigger()
 
     def _settle(self, state: LayerState, applied: bool, error: LayerError | None) -> None:
         now = time.monotonic()
@@ -397,6 +439,9 @@ class ContextParticipant:
             self.node.get_logger().error(f"cannot apply epoch {state.epoch}: {why}")
             self._run(self.protocol.failed(state, why, now))
 
+
+# The states every participant of the process received last, decoded once for all of them.
+_states = StateDecoder()
 
 # The participant each process's context nodes share, by rclpy context.
 _shared_participants: dict[Any, ContextParticipant] = {}

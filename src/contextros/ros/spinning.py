@@ -21,7 +21,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 
-from contextros.ros.wait_loop import WaitLoop
+from contextros.ros.wait_loop import UnsupportedEntityError, WaitLoop
 
 RCLError = rclpy_implementation.RCLError
 
@@ -31,7 +31,7 @@ def spin_nodes(
     *,
     until: Callable[[], bool] | None = None,
     timeout: float | None = None,
-    lean: bool = False,
+    lean: bool | None = None,
     before_teardown: Callable[[], None] | None = None,
     teardown_limit: float | None = None,
 ) -> None:
@@ -43,23 +43,19 @@ def spin_nodes(
     thread, the signals are caught here for the duration of the spin, before rclpy's
     handler would shut the context down.
 
-    `lean`: spin with `WaitLoop` instead of rclpy's executor (the manager does: it answers
-    every participant's messages, and rclpy's executor cost more than its callbacks).
-    Context nodes whose callbacks are plain functions may too (a third of the CPU per
-    activation, docs/protocol.md "Spinning lean"); it raises UnsupportedEntityError on a
-    coroutine callback or an action.
+    The executor (docs/protocol.md "Spinning lean"): by default (`lean=None`) `WaitLoop`,
+    which serves a node's subscriptions, timers, services, clients, guard conditions and
+    QoS events at half the CPU of rclpy's executor, as long as it can serve every entity of
+    the nodes; once a node has one it cannot (a coroutine callback, an action), the spin
+    goes on with rclpy's `SingleThreadedExecutor`, and says why in one log line.
+    `lean=True`: `WaitLoop` or `UnsupportedEntityError`; `lean=False`: rclpy's executor
+    (for callbacks that use `node.executor`, which `WaitLoop` does not set).
 
     `before_teardown` runs once the spin ended, before the nodes are destroyed (to close
     what must be closed, whatever the teardown does). `teardown_limit`, for a program's
     main: see `bounded_teardown`.
     """
-    executor: SingleThreadedExecutor | WaitLoop
-    if lean:
-        executor = WaitLoop(nodes)
-    else:
-        executor = SingleThreadedExecutor()
-        for node in nodes:
-            executor.add_node(node)
+    executor = WaitLoop(nodes) if lean is not False else _rclpy_executor(nodes)
     deadline = None if timeout is None else time.monotonic() + timeout
     previous = _catch_signals()
     try:
@@ -68,7 +64,15 @@ def spin_nodes(
                 break
             if deadline is not None and time.monotonic() >= deadline:
                 break
-            executor.spin_once(timeout_sec=0.1)
+            try:
+                executor.spin_once(timeout_sec=0.1)
+            except UnsupportedEntityError as unsupported:
+                # Raised before waiting (nothing taken yet): rclpy's executor takes over.
+                if lean or not isinstance(executor, WaitLoop):
+                    raise
+                executor.shutdown()
+                executor = _rclpy_executor(nodes)
+                nodes[0].get_logger().info(f"spinning with rclpy's executor: {unsupported.reason}")
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except RCLError:
@@ -88,6 +92,13 @@ def spin_nodes(
                         node.destroy_node()
                 executor.shutdown(timeout_sec=0.5)
             _restore_signals(previous)
+
+
+def _rclpy_executor(nodes: Sequence[Node]) -> SingleThreadedExecutor:
+    executor = SingleThreadedExecutor()
+    for node in nodes:
+        executor.add_node(node)
+    return executor
 
 
 @contextlib.contextmanager

@@ -32,7 +32,8 @@ import time
 from collections import deque
 from collections.abc import Callable, Iterable, Sequence
 from functools import partial
-from itertools import compress
+from itertools import chain, compress
+from operator import attrgetter
 from typing import Any
 
 from rclpy.context import Context
@@ -59,6 +60,8 @@ class WaitLoop:
     def __init__(self, nodes: Sequence[Node], context: Context | None = None) -> None:
         self.nodes = list(nodes)
         self.context = context or get_default_context()
+        # How to read each kind of entity of every node (in `_KINDS`' order), once per wake-up.
+        self._lists = _entity_lists(self.nodes)
         self._entities: tuple[tuple[Any, ...], ...] = ()
         self._held = contextlib.ExitStack()
         self._wait_set: Any = None
@@ -87,10 +90,8 @@ class WaitLoop:
         if not self.nodes:  # shut down, or nothing to spin: nothing to wait on, or hold
             time.sleep(timeout_sec or 0.0)
             return
-        entities = tuple(
-            tuple(entity for node in self.nodes for entity in getattr(node, kind))
-            for kind in _KINDS
-        )
+        nodes = self.nodes
+        entities = tuple([tuple(chain.from_iterable(map(get, nodes))) for get in self._lists])
         if entities != self._entities:
             self._build(entities)
         self._fill()
@@ -279,10 +280,38 @@ class WaitLoop:
 
 # Node attributes listing each kind of entity, in the order `_build` takes them.
 _KINDS = ("subscriptions", "timers", "clients", "services", "guards", "waitables")
+# The lists behind those properties in rclpy's Node (each property is a generator over one):
+# read straight, in C, a wake-up of 8 context nodes checks its 150 entities in 4 µs, not 20.
+_NODE_LISTS = (
+    "_subscriptions",
+    "_timers",
+    "_clients",
+    "_services",
+    "_guards",
+    "_Node__waitables",
+)
+
+
+def _entity_lists(nodes: Sequence[Node]) -> list[Callable[[Node], Iterable[Any]]]:
+    """Per kind, what gives a node's entities of that kind: rclpy's list where every node
+    has it, else the public property (another rclpy, or a node overriding one)."""
+    if all(
+        isinstance(getattr(node, name, None), list)
+        and getattr(type(node), kind, None) is getattr(Node, kind)
+        for node in nodes
+        for kind, name in zip(_KINDS, _NODE_LISTS, strict=True)
+    ):
+        return [attrgetter(name) for name in _NODE_LISTS]
+    return [attrgetter(kind) for kind in _KINDS]
 
 
 class UnsupportedEntityError(TypeError):
-    """A node has what `WaitLoop` cannot run: spin it with rclpy's executor."""
+    """A node has what `WaitLoop` cannot run: spin it with rclpy's executor. `reason` says
+    what (naming the node and the entity)."""
+
+    def __init__(self, reason: str) -> None:
+        super().__init__(f"{reason}; spin this node with rclpy's executor (lean=False)")
+        self.reason = reason
 
 
 _KIND_NAMES = {
@@ -305,8 +334,7 @@ def _check_supported(nodes: Sequence[Node]) -> None:
                     what = f"{_KIND_NAMES[kind]} {name}".rstrip()
                     raise UnsupportedEntityError(
                         f"node {node.get_fully_qualified_name()}: the {what} has a coroutine "
-                        "callback, which WaitLoop does not await; spin this node with rclpy's "
-                        "executor (spin_nodes(..., lean=False))"
+                        "callback, which WaitLoop does not await"
                     )
         for waitable in node.waitables:
             if isinstance(waitable, EventHandler) and inspect.iscoroutinefunction(
@@ -314,14 +342,12 @@ def _check_supported(nodes: Sequence[Node]) -> None:
             ):
                 raise UnsupportedEntityError(
                     f"node {node.get_fully_qualified_name()}: a QoS event handler has a "
-                    "coroutine callback, which WaitLoop does not await; spin this node with "
-                    "rclpy's executor (spin_nodes(..., lean=False))"
+                    "coroutine callback, which WaitLoop does not await"
                 )
             if not isinstance(waitable, EventHandler):
                 raise UnsupportedEntityError(
                     f"node {node.get_fully_qualified_name()}: WaitLoop runs only QoS event "
-                    f"handlers among waitables, not {type(waitable).__name__} (actions need "
-                    "rclpy's executor: spin_nodes(..., lean=False))"
+                    f"handlers among waitables, not {type(waitable).__name__} (an action's)"
                 )
 
 
