@@ -1,7 +1,8 @@
 """The motion controller: an ordinary rclpy node with a `max_speed` parameter.
 
-It knows nothing of ContextROS: the Layer manager sets `max_speed` while LowBattery is active
-(`parameter LowBattery: controller max_speed = 0.3` in rescue.layers) and restores it after.
+It knows nothing of ContextROS: the Layer manager sets `max_speed` while SlowDrive is active
+(`parameter SlowDrive: controller max_speed = 0.3` in rescue.layers; LowBattery implies
+SlowDrive) and restores it after.
 It refuses speeds above 3 m/s, as a real controller would validate its limits.
 """
 

@@ -5,7 +5,9 @@ lifecycle declarations of rescue.layers; the mobility context node; the motion c
 (an ordinary node with a `max_speed` parameter); the propeller driver (an ordinary lifecycle
 node, in the sub-namespace /rescue1/drivers); and the simulated world (battery, terrain).
 Narrates the mission: the terrain selects wheels or flight, a low battery forbids flight and
-slows the robot down. Exits 0 once every part behaved as expected, 1 otherwise.
+slows the robot down; each of these modes implies the modes of the robot's parts (the
+propellers on or off, the controller's speed limit), which the manager activates with it.
+Exits 0 once every part behaved as expected, 1 otherwise.
 """
 
 from __future__ import annotations
@@ -20,15 +22,16 @@ from examples.launch import REPOSITORY, Launch, OutputLine
 NAMESPACE = "/rescue1"
 TIME_LIMIT = 45.0
 LAYERS = REPOSITORY / "examples/rescue/rescue.layers"
-# The states the mobility node applies, in order, after the manager's first (empty) one.
+# The states the mobility node applies, in order, after the manager's first (empty) one:
+# each of the robot's modes with the parts' modes it implies (just before it).
 EXPECTED_STATES = [
-    "Wheels",
-    "Flight",
-    "Wheels",
-    "Wheels, LowBattery",
-    "Wheels",
-    "Flight",
-    "Wheels",
+    "PropellersOff, Wheels",
+    "PropellersOn, Flight",
+    "PropellersOff, Wheels",
+    "PropellersOff, Wheels, SlowDrive, LowBattery",
+    "PropellersOff, Wheels",
+    "PropellersOn, Flight",
+    "PropellersOff, Wheels",
 ]
 EXPECTED_SPEEDS = ["1.5", "0.3", "1.5"]
 EXPECTED_PROPELLERS = [

@@ -1,8 +1,9 @@
 """The propeller driver: a lifecycle node, active only in flight.
 
 An ordinary rclpy `LifecycleNode`: the Layer manager moves it with the standard lifecycle
-services (`lifecycle Flight: drivers/propeller active` in rescue.layers). The demo launches
-it in the sub-namespace drivers/ of the robot (`--ros-args -r __ns:=/rescue1/drivers`).
+services (`lifecycle PropellersOn: drivers/propeller active` in rescue.layers, a mode
+Flight implies). The demo launches it in the sub-namespace drivers/ of the robot
+(`--ros-args -r __ns:=/rescue1/drivers`).
 """
 
 from __future__ import annotations

@@ -24,9 +24,11 @@ def test_the_terrain_and_the_battery_drive_the_robot(domain_id: int) -> None:
     assert demo.returncode == 0, demo.stdout + demo.stderr
     out = demo.stdout
     summary = out[out.index("summary:") :]
-    assert (
-        "[Wheels] -> [Flight] -> [Wheels] -> [Wheels, LowBattery] -> [Wheels] -> [Flight] -> "
-        "[Wheels]" in summary
+    # Each mode of the robot with the modes of its parts it implies (issue 28).
+    wheels, flight = "[PropellersOff, Wheels]", "[PropellersOn, Flight]"
+    low = "[PropellersOff, Wheels, SlowDrive, LowBattery]"
+    assert f"{wheels} -> {flight} -> {wheels} -> {low} -> {wheels} -> {flight} -> {wheels}" in (
+        summary
     )
     assert "max_speed   1.5 -> 0.3 -> 1.5 m/s" in summary
     assert summary.count("propellers spinning") == 2

@@ -306,9 +306,9 @@ ROBOT_RULES = (
         (
             "x.layers",
             RESCUE,
-            "parameter LowBattery",
-            "arameter LowBattery",
-            "38:1: expected a declaration ('layer', 'base', 'group', "
+            "parameter SlowDrive",
+            "arameter SlowDrive",
+            "60:1: expected a declaration ('layer', 'base', 'group', "
             "'rule', 'parameter', 'lifecycle' or 'topic'), "
             "found 'arameter' (misspelt 'parameter'?)",
         ),
