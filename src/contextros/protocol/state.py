@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -189,6 +190,9 @@ def _json_object(text: str, source: str) -> dict[str, Any]:
         raise _damaged(source, f"not JSON at {where} ({error.msg.removesuffix(' at')})") from error
     except RecursionError as error:
         raise _damaged(source, "not JSON (nested too deeply)") from error
+    except ValueError as error:  # an integer past Python's 4300-digit limit
+        digits = len(max(re.findall(r"\d+", text), key=len, default=""))
+        raise _damaged(source, f"not JSON (a number of {digits} digits)") from error
     if not isinstance(data, dict):
         raise _damaged(source, f"not a JSON object but {_shown(data)}")
     return data

@@ -146,6 +146,7 @@ def _corpus(directory: Path) -> list[tuple[Path, str]]:
         ("number", b"7", "not a JSON object but a number"),
         ("null", b"null", "not a JSON object but null"),
         ("deep", b"[" * 100_000, "not JSON"),
+        ("huge-number", b'{"epoch": ' + b"9" * 5000 + b"}", "not JSON (a number of 5000 digits)"),
         ("directory", None, "it is a directory"),
     ]
     files += [
