@@ -311,3 +311,55 @@ def test_the_replay_plots_a_parameter_and_notes_a_value_it_cannot_compare() -> N
     assert [s.active for s in replay.result.switches] == [("Careful",)]
     assert replay.result.signals == {"param controller.max_speed": [(0.0, 0.3)]}
     assert any("is a string ('fast')" in note for note in replay.result.notes)
+
+
+GRAPH_LAYERS = """\
+layer SafeMode:
+    def speed() -> float:
+        return 0.1
+layer Cruise:
+    def speed() -> float:
+        return 1.0
+group mode: SafeMode, Cruise
+rule Degraded: SafeMode while lifecycle drivers/propeller != active
+rule Fine: Cruise while lifecycle drivers/propeller == active
+rule Odd: Cruise while lifecycle drivers/propeller == inactive
+"""
+
+
+def test_contextros_check_reports_graph_rule_errors_and_contradictions(tmp_path) -> None:
+    import subprocess
+    import sys
+
+    good = tmp_path / "robot.layers"
+    good.write_text(GRAPH_LAYERS, encoding="utf-8")
+    done = subprocess.run(
+        [sys.executable, "-m", "contextros", "check", str(good)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stdout + done.stderr
+    warnings = [line for line in done.stdout.splitlines() if ": warning: " in line]
+    # Degraded and Fine are exclusive (!= active, == active); Odd overlaps both.
+    assert len(warnings) == 2, done.stdout
+    assert warnings[0].startswith(f"{good}:10:6: warning: rules Degraded (robot.layers:8) and Odd")
+    assert "both of exclusive group 'mode'" in warnings[0]
+    assert warnings[1].startswith(f"{good}:10:6: warning: rules Fine (robot.layers:9) and Odd")
+    bad = tmp_path / "bad.layers"
+    bad.write_text(
+        GRAPH_LAYERS.replace("!= active", "!= activ")
+        + "rule Speed: SafeMode while param max_speed < 0.5\n",
+        encoding="utf-8",
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "contextros", "check", str(bad)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 1
+    assert (
+        f"{bad}:8:62: error: unknown lifecycle state 'activ' (did you mean active?)" in done.stdout
+    )
+    assert f"{bad}:11:34: error: 'param max_speed' names no node" in done.stdout
