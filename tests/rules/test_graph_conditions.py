@@ -228,6 +228,7 @@ def test_parameter_events_give_the_named_parameters_of_the_named_node_only() -> 
         (parameter("max_speed", 3, double_value="0.3"), "malformed (type 3 with a str value)"),
         (parameter("max_speed", 2, integer_value=True), "malformed (type 2 with a bool value)"),
         (parameter("max_speed", 77), "of an unknown parameter type 77"),
+        (parameter("max_speed", 0), "is not set (does the node declare it?)"),
     ],
 )
 def test_a_parameter_value_the_rules_cannot_compare_is_no_value_with_a_problem(

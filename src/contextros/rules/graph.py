@@ -182,8 +182,7 @@ class GraphInputs:
         """A parameter's value if it is one the rules can compare, else None (logged)."""
         plain, why = parameter_value(value)
         if plain is None:
-            if why:
-                self._problem(source, f"{source} on {node} is {why}: it has no value for the rules")
+            self._problem(source, f"{source} on {node} is {why}: it has no value for the rules")
             return None
         kind = (
             "bool"
@@ -211,10 +210,10 @@ class GraphInputs:
 
 
 def parameter_value(value: Any) -> tuple[Value | None, str]:
-    """A ParameterValue as a plain value, or (None, why not: '' when it is not set)."""
+    """A ParameterValue as a plain value, or (None, why not)."""
     kind = getattr(value, "type", None)
     if kind == 0:
-        return None, ""
+        return None, "not set (does the node declare it?)"
     if kind in _ARRAYS:
         return None, f"a {_ARRAYS[kind]} (rules compare plain values)"
     if kind not in _PARAMETER_KINDS:
