@@ -363,3 +363,52 @@ def test_an_error_in_an_inlined_guard_points_at_the_guard() -> None:
     assert frames[-1].line == ("@failing.partial(Big, when=lambda self, area: 1 // (area - 5) > 0)")
     source = linecache.getline(frames[-1].filename, frames[-1].lineno or 0)
     assert source[frames[-1].colno or 0 :].startswith("1 // (area - 5)")
+
+
+def _scaled_above_ten(robot: object, area: int) -> bool:
+    area = area * 100
+    return area > 10
+
+
+def _deleting(robot: object, area: int) -> bool:
+    del area
+    return True
+
+
+class Writers:
+    """Guards that assign or delete a parameter: their own, never the partial's arguments."""
+
+    @layered
+    def test(self, area: int) -> tuple[str, int]:
+        return ("base", area)
+
+    @test.partial(Big, when=lambda self, area: (area := area + 10) > 12)
+    def test(self, area: int) -> tuple[str, int]:
+        return ("big", proceed(self, area)[1])
+
+    @test.partial(Wet, when=_scaled_above_ten)
+    def test(self, area: int) -> tuple[str, int]:
+        return ("wet", proceed(self, area)[1])
+
+    @test.partial(Logged, when=_deleting)
+    def test(self, area: int) -> tuple[str, int]:
+        return ("logged", proceed(self, area)[1])
+
+
+@pytest.mark.parametrize(
+    ("layer", "calls"),
+    [
+        (Big, {3: ("big", 3), 1: ("base", 1)}),
+        (Wet, {1: ("wet", 1), 0: ("base", 0)}),
+        (Logged, {5: ("logged", 5)}),
+    ],
+)
+def test_a_guard_writing_its_parameters_leaves_the_arguments_alone(
+    layer: Layer, calls: dict[int, tuple[str, int]]
+) -> None:
+    writers = Writers()
+    set_active([layer])
+    try:
+        assert {area: writers.test(area) for area in calls} == calls
+    finally:
+        set_active([])

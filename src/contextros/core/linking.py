@@ -318,6 +318,13 @@ _OPS = {
         "SWAP",
     )
 }
+# Opcodes an inlined guard may not run: in the partial's frame they would write its locals
+# (its arguments: `n := ...`, `del n`) or use cells. Reading its parameters is all it may do.
+_WRITES_LOCALS = frozenset(
+    op
+    for op in (*dis.haslocal, *dis.hasfree)
+    if dis.opname[op] not in ("LOAD_FAST", "LOAD_FAST_CHECK")
+)
 _NO_LOCATION = 0xF8  # a line-table entry of CPython 3.11 with no location, one code unit long
 _NOT_PLAIN = (
     inspect.CO_VARARGS
@@ -422,7 +429,8 @@ def _inlined_guard(
     first locals of both) with `guard`'s names from index `first_name` of the names and its
     constants after `code`'s, leaving its result on the stack. None unless `guard` is a
     plain function of `namespace` (`code`'s module) taking exactly `code`'s positional
-    parameters and no other local."""
+    parameters and no other local, and reading them only (a guard assigning or deleting
+    one would change the partial's arguments: it is called instead)."""
     if not isinstance(guard, FunctionType):
         return None
     own = guard.__code__
@@ -442,7 +450,7 @@ def _inlined_guard(
     end = len(body) // 2
     for unit in range(end):
         op, argument = body[2 * unit], body[2 * unit + 1]
-        if op == dis.opmap["EXTENDED_ARG"]:
+        if op == dis.opmap["EXTENDED_ARG"] or op in _WRITES_LOCALS:
             return None
         if op == _OPS["RETURN_VALUE"]:  # on to the test of the result
             op, argument = _OPS["JUMP_FORWARD"], end - unit - 1
