@@ -48,7 +48,10 @@ def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Ite
     group = ProcessGroup()
     try:
         plain = group.start("plain nodes", [str(HERE / "plain_nodes_process.py")])
-        participant = group.participant("dash1")
+        # The default layers, and Survey, which implies CameraHigh (a hierarchy).
+        participant = group.participant(
+            "dash1", "--layers", "Indoor,Outdoor,Night,Slow,Fast,Gps,Survey,CameraHigh,CameraLow"
+        )
         group.manager("--liveness-timeout", LIVENESS, "--layers", str(layers))
         dashboard = group.start("dashboard", ["-m", "contextros", "dashboard", "--port", "0"])
         for child in (plain, participant):
@@ -142,6 +145,17 @@ def test_the_rules_and_bindings_show_their_live_values(page: Any, client: LayerC
         sensors.node.destroy_node()
 
 
+def test_an_implied_layer_shows_what_implies_it(page: Any, client: LayerClient) -> None:
+    settle(client)
+    result = client.request(["Survey"], synchronous=True, timeout=5)
+    assert result.success and list(result.active) == ["CameraHigh", "Survey"], result.message
+    section = robot(page)
+    implied = section.locator('[data-testid="active"] .implied')
+    implied.filter(has_text="CameraHigh (implied by Survey)").wait_for(timeout=10_000)
+    newest = section.locator('[data-testid="switches"] tbody tr').first
+    assert "CameraHigh (implied by Survey), Survey" in newest.inner_text()
+
+
 def test_the_page_stays_bounded_over_many_switches(page: Any, client: LayerClient) -> None:
     settle(client)
     for index in range(120):
@@ -154,3 +168,22 @@ def test_the_page_stays_bounded_over_many_switches(page: Any, client: LayerClien
     assert rows == 50, "the history keeps the last 50 switches"
     elements = page.evaluate("() => document.getElementsByTagName('*').length")
     assert elements < 2_000, elements
+
+
+def test_a_drifted_binding_shows_what_the_node_has(page: Any, client: LayerClient) -> None:
+    """Another client sets max_speed while Night (which sets it to 0.5) is active: the
+    bindings table shows the drift, and the actual bound layers differ from the target."""
+    from tests.ros.test_drift import set_by_hand
+
+    settle(client, "Night")
+    section = robot(page)
+    state = section.locator('[data-testid="actual-state"]')
+    state.filter(has_text="as targeted").wait_for(timeout=10_000)
+    set_by_hand(client, 0.8)
+    drift = section.locator('[data-testid="drift"]')
+    drift.filter(has_text="DRIFTED: 0.8 since").wait_for(timeout=10_000)
+    assert state.inner_text() == "differs"
+    assert "actual [none]" in section.locator('[data-testid="actual"]').inner_text()
+    set_by_hand(client, 0.5)
+    state.filter(has_text="as targeted").wait_for(timeout=10_000)
+    assert drift.count() == 0

@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from contextros.protocol.events import ParticipantReport
+from contextros.protocol.relations import LayerDeclaration, implied_by
 
 HISTORY = 50  # switches kept per robot
 FORGET_AFTER = 60.0  # seconds a silent node stays on the page (greyed out)
@@ -186,11 +187,14 @@ class DashboardModel:
     def _robot(self, robot: _Robot, now: float) -> Snapshot:
         registry = robot.registry
         known = {p["node"]: p for p in registry.get("participants", [])}
+        implies = _declared_implies(registry)
         silent = robot.heartbeat == 0.0 or now - robot.heartbeat > HEARTBEAT_LOST
         return {
             "namespace": robot.namespace,
             "epoch": robot.epoch,
             "active": list(robot.active),
+            # Each active layer another active layer implies: {"Propulsion": ["Flight"]}.
+            "implied_by": _implied_by(robot.active, implies),
             "requester": robot.requester,
             "reason": robot.reason,
             "manager_id": robot.manager_id,
@@ -204,6 +208,7 @@ class DashboardModel:
                 {
                     "epoch": s.epoch,
                     "active": list(s.active),
+                    "implied_by": _implied_by(s.active, implies),
                     "requester": s.requester,
                     "reason": s.reason,
                     "published": s.published,
@@ -253,3 +258,20 @@ class DashboardModel:
             "hosted": list(node.hosted),
             "heard_ago": round(now - node.heard, 2),
         }
+
+
+def _declared_implies(registry: Snapshot) -> dict[str, LayerDeclaration]:
+    """The layers' `implies` as the manager's last registry answer gives them."""
+    return {
+        str(layer["name"]): LayerDeclaration(
+            str(layer["name"]), implies=frozenset(map(str, layer.get("implies", ())))
+        )
+        for layer in registry.get("layers", [])
+        if isinstance(layer, dict) and "name" in layer
+    }
+
+
+def _implied_by(
+    active: Iterable[str], declarations: dict[str, LayerDeclaration]
+) -> dict[str, list[str]]:
+    return {name: list(by) for name, by in implied_by(active, declarations).items()}

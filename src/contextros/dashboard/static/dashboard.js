@@ -54,8 +54,11 @@ function holdCell(rule) {
 function renderRobot(robot) {
   const section = el("section", { cls: "robot", "data-robot": robot.namespace });
   section.append(el("h2", { text: `robot ${robot.namespace}` }));
+  const implied = robot.implied_by ?? {};
   const layers = robot.active.length
-    ? robot.active.map((name) => el("span", { cls: "layer", text: name }))
+    ? robot.active.map((name) => implied[name]
+      ? el("span", { cls: "layer implied", text: `${name} (implied by ${implied[name].join(", ")})` })
+      : el("span", { cls: "layer", text: name }))
     : [el("span", { cls: "empty", text: "no layer active" })];
   const active = el("span", { "data-testid": "active" }, ...layers);
   const summary = el("div", { cls: "summary" },
@@ -76,7 +79,7 @@ function renderRobot(robot) {
   section.append(el("h3", { text: "Switches (newest first)" }), table(
     ["epoch", "time", "active", "by", "applied after (per node)"],
     robot.history.map((s) => [s.epoch, clockTime(s.published),
-      s.active.join(", ") || "none", `${s.requester}: ${s.reason}`,
+      withImplied(s.active, s.implied_by ?? {}) || "none", `${s.requester}: ${s.reason}`,
       Object.entries(s.latency_ms).map(([node, ms]) => `${node} ${ms.toFixed(1)} ms`).join(", ")]),
     "switches", "no switch since the dashboard started"));
 
@@ -118,6 +121,12 @@ function seenCell(b) {
   const action = b.drift_action ? `; ${b.drift_action}` : "";
   return el("span", { cls: "error", "data-testid": "drift",
     text: `DRIFTED: ${b.observed} since ${clockTime(b.drifted_since)}${action}` });
+}
+
+// "CameraHigh (implied by Flight), Flight": the active layers, saying which are implied.
+function withImplied(active, implied) {
+  return active.map((name) => implied[name] ? `${name} (implied by ${implied[name].join(", ")})` : name)
+    .join(", ");
 }
 
 // A switch's wall-clock time to the millisecond (switches come within ms of each other).
