@@ -187,22 +187,3 @@ def test_a_drifted_binding_shows_what_the_node_has(page: Any, client: LayerClien
     set_by_hand(client, 0.5)
     state.filter(has_text="as targeted").wait_for(timeout=10_000)
     assert drift.count() == 0
-
-
-def test_a_drifted_binding_shows_what_the_node_has(page: Any, client: LayerClient) -> None:
-    """Another client sets max_speed while Night (which sets it to 0.5) is active: the
-    bindings table shows the drift, and the actual bound layers differ from the target."""
-    from tests.ros.test_drift import set_by_hand
-
-    settle(client, "Night")
-    section = robot(page)
-    state = section.locator('[data-testid="actual-state"]')
-    state.filter(has_text="as targeted").wait_for(timeout=10_000)
-    set_by_hand(client, 0.8)
-    drift = section.locator('[data-testid="drift"]')
-    drift.filter(has_text="DRIFTED: 0.8 since").wait_for(timeout=10_000)
-    assert state.inner_text() == "differs"
-    assert "actual [none]" in section.locator('[data-testid="actual"]').inner_text()
-    set_by_hand(client, 0.5)
-    state.filter(has_text="as targeted").wait_for(timeout=10_000)
-    assert drift.count() == 0
