@@ -3,6 +3,7 @@ declaration, and its cycles and contradictions reported at file:line:col."""
 
 from __future__ import annotations
 
+import subprocess
 import textwrap
 from pathlib import Path
 
@@ -209,3 +210,44 @@ def test_implies_names_a_declared_layer_and_not_itself() -> None:
 def test_a_misspelt_relation_lists_implies() -> None:
     (error,) = found("layer A implie B:\n    def f(): ...\n")
     assert error[3] == "expected 'excludes', 'requires', 'after', 'implies' or ':', found 'implie'"
+
+
+def test_the_generated_cpp_defines_the_hierarchy_in_the_runtime(tmp_path: Path) -> None:
+    """Compiled with -Wall -Wextra -Werror and run: `defined_layers()` (what the C++
+    participant announces) carries what each layer implies."""
+    from tests.language.test_cpp_compiler import cxx, runtime_objects
+
+    compiled = compile_cpp(DRONE_CPP, "drone.cpp.layers", header=False)
+    (tmp_path / "drone.layers.cpp").write_text(compiled.source)
+    (tmp_path / "main.cpp").write_text(
+        "#include <contextros/layer.hpp>\n#include <iostream>\n"
+        "int main() {\n"
+        "  for (const auto& layer : contextros::defined_layers()) {\n"
+        "    std::cout << layer.name << ':';\n"
+        "    for (const auto& implied : layer.implies) std::cout << ' ' << implied;\n"
+        "    std::cout << '\\n';\n"
+        "  }\n"
+        "}\n"
+    )
+    build = cxx(
+        "-std=c++17",
+        "-Werror",
+        "-pthread",
+        "drone.layers.cpp",
+        "main.cpp",
+        *runtime_objects(),
+        "-o",
+        "drone",
+        cwd=tmp_path,
+    )
+    assert build.returncode == 0, build.stderr
+    run = subprocess.run([tmp_path / "drone"], capture_output=True, text=True, timeout=30)
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.splitlines() == [
+        "CameraHigh:",
+        "CameraLow:",
+        "Flight: Propulsion CameraHigh",
+        "Landed: CameraLow",
+        "Mission: Flight",
+        "Propulsion:",
+    ]
