@@ -96,9 +96,12 @@ def register(commands: Any) -> None:
 _KINDS = {".py": "a Python module", ".cpp": "C++ source", ".hpp": "a C++ header", ".h": "a header"}
 
 
-def not_layers(path: Path) -> str:
-    """Why `path` is not something to check ('' when it is a layer file, or a directory
-    holding some); the manager refuses its --layers files for the same reasons."""
+def not_layers(path: Path, *, directories: bool = True) -> str:
+    """Why `path` is not something to check ('' when it is a layer file, or with
+    `directories` a directory holding some). The manager refuses its --layers files for the
+    same reasons, and directories (`directories=False`: it takes layer files, docs/cli.md)."""
+    if path.is_dir() and not directories:
+        return "a directory, not a layer file (name its layer files: DIR/*.layers)"
     if path.is_dir():
         return "" if any(path.rglob("*.layers")) else "a directory with no *.layers file in it"
     if path.name.endswith(".layers"):

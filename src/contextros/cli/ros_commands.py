@@ -282,8 +282,10 @@ def run_manager(args: argparse.Namespace) -> int:
 
         # Refused: what `contextros check` refuses in each file, and what the files together
         # have (docs/rules.md), every error listed.
-        found = check_files(args.layer_files, message_types=installed_message_type)
-        not_files = [(name, not_layers(Path(name))) for name in args.layer_files]
+        not_files = [(name, not_layers(Path(name), directories=False)) for name in args.layer_files]
+        found = check_files(
+            [name for name, why in not_files if not why], message_types=installed_message_type
+        )
         errors = "\n".join(
             [f"{name}: error: {why}" for name, why in not_files if why]
             + [d.render() for d in found if d.is_error]
