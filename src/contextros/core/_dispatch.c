@@ -204,6 +204,10 @@ receiver_of(Finder *self, PyObject *receiver)
 static PyObject *
 find(Finder *self, PyObject *receiver_object)
 {
+    if (self->function == NULL) { /* Finder.__new__ without __init__, or cleared */
+        PyErr_SetString(PyExc_TypeError, "the contextros Finder is not initialised");
+        return NULL;
+    }
     PyObject *scope = current_scope(self);
     if (scope == NULL) {
         return NULL;
@@ -321,6 +325,12 @@ finder_init(Finder *self, PyObject *args, PyObject *kwargs)
     PyObject *function, *scope, *runtime, *head, *objects = Py_None, *classes = Py_None;
     PyObject *expected = NULL;
     int by_class = 0;
+    /* Its fields stay as set while it lives: a call reads them borrowed, and re-running
+     * __init__ from code a call runs would release them under it. */
+    if (self->function != NULL) {
+        PyErr_SetString(PyExc_TypeError, "the contextros Finder is already initialised");
+        return -1;
+    }
     if (!PyArg_ParseTupleAndKeywords(args, kwargs, "OOOO|OOpO:Finder", names, &function,
                                      &scope, &runtime, &head, &objects, &classes, &by_class,
                                      &expected)) {
@@ -334,22 +344,26 @@ finder_init(Finder *self, PyObject *args, PyObject *kwargs)
         PyErr_SetString(PyExc_TypeError, "Finder: objects and classes must be dicts");
         return -1;
     }
-    Py_XSETREF(self->function, Py_NewRef(function));
-    Py_XSETREF(self->scope, Py_NewRef(scope));
-    Py_XSETREF(self->runtime, Py_NewRef(runtime));
-    Py_XSETREF(self->head, Py_NewRef(head));
-    Py_XSETREF(self->objects, Py_NewRef(objects));
-    Py_XSETREF(self->classes, Py_NewRef(classes));
-    Py_XSETREF(self->expected, expected == Py_None ? NULL : Py_XNewRef(expected));
+    self->scope = Py_NewRef(scope);
+    self->runtime = Py_NewRef(runtime);
+    self->head = Py_NewRef(head);
+    self->objects = Py_NewRef(objects);
+    self->classes = Py_NewRef(classes);
+    self->expected = expected == Py_None ? NULL : Py_XNewRef(expected);
     self->by_class = by_class;
-    self->vectorcall = finder_vectorcall;
-    Py_CLEAR(self->cached_heads);
-    Py_CLEAR(self->cached_head);
-#if PY_VERSION_HEX < 0x030C0000
-    Py_CLEAR(self->cached_found);
-    self->cached_receiver = NULL;
-#endif
+    self->function = Py_NewRef(function); /* last: the finder is ready */
     return 0;
+}
+
+/* Callable from its creation: a call before __init__ is a TypeError (find), not a crash. */
+static PyObject *
+finder_new(PyTypeObject *type, PyObject *args, PyObject *kwargs)
+{
+    Finder *self = (Finder *)PyType_GenericNew(type, args, kwargs);
+    if (self != NULL) {
+        self->vectorcall = finder_vectorcall;
+    }
+    return (PyObject *)self;
 }
 
 static PyMemberDef finder_members[] = {
@@ -372,7 +386,7 @@ static PyTypeObject FinderType = {
                         "head a layered call runs"),
     .tp_basicsize = sizeof(Finder),
     .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_HAVE_GC | Py_TPFLAGS_HAVE_VECTORCALL,
-    .tp_new = PyType_GenericNew,
+    .tp_new = finder_new,
     .tp_init = (initproc)finder_init,
     .tp_dealloc = (destructor)finder_dealloc,
     .tp_traverse = (traverseproc)finder_traverse,
