@@ -72,13 +72,13 @@ cpp-demo: $(CPP_BUILD)/build.ninja
 
 # The core's C dispatcher (src/contextros/core/_dispatch.c), built by the wheel's CMake tree
 # and copied next to its source (the editable install uses the sources in place). A failed
-# build leaves the pure-Python dispatchers in use, and says so.
+# build leaves the pure-Python dispatchers in use, says so and leaves no stamp: the next make
+# tries again.
 $(VENV)/.stamp-dispatch: $(VENV)/.stamp-interfaces src/contextros/core/_dispatch.c
 	rm -f src/contextros/core/_dispatch.*.so
-	$(BUILD_PATH) cmake --build $(WHEEL_BUILD) --target dispatch_extension \
-	  && cp $(WHEEL_BUILD)/dispatch/_dispatch.*.so src/contextros/core/ \
-	  || echo "contextros: WARNING: the C dispatcher was not built; pure-Python dispatch"
-	touch $@
+	if $(BUILD_PATH) cmake --build $(WHEEL_BUILD) --target dispatch_extension \
+	  && cp $(WHEEL_BUILD)/dispatch/_dispatch.*.so src/contextros/core/; then touch $@; \
+	else echo "contextros: WARNING: the C dispatcher was not built; pure-Python dispatch"; fi
 
 venv: $(VENV)/.stamp-base
 ros: $(VENV)/.stamp-interfaces $(VENV)/.stamp-dispatch
