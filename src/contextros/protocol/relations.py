@@ -100,20 +100,29 @@ def _excludes_of(name: str, declarations: Mapping[str, LayerDeclaration]) -> fro
 
 def implied_layers(name: str, declarations: Mapping[str, LayerDeclaration]) -> tuple[str, ...]:
     """What `name` implies, transitively, in activation order: each implied layer before the
-    layer implying it, depth first, by name (`name` itself not included, cycles cut)."""
+    layer implying it, depth first, by name (`name` itself not included, cycles cut).
+    Iterative: a chain of any length (declarations come from the network) is no recursion."""
     found: list[str] = []
-    visiting = {name}
-
-    def visit(layer: str) -> None:
-        declaration = declarations.get(layer)
-        for implied in sorted(declaration.implies) if declaration else ():
-            if implied not in visiting:
-                visiting.add(implied)
-                visit(implied)
-                found.append(implied)
-
-    visit(name)
+    seen = {name}
+    # Each entry: a layer and the layers it implies still to visit (reversed: pop the next).
+    stack = [(name, _implied_of(name, declarations))]
+    while stack:
+        layer, pending = stack[-1]
+        if not pending:
+            stack.pop()
+            if layer != name:
+                found.append(layer)
+            continue
+        implied = pending.pop()
+        if implied not in seen:
+            seen.add(implied)
+            stack.append((implied, _implied_of(implied, declarations)))
     return tuple(found)
+
+
+def _implied_of(name: str, declarations: Mapping[str, LayerDeclaration]) -> list[str]:
+    declaration = declarations.get(name)
+    return sorted(declaration.implies, reverse=True) if declaration else []
 
 
 def with_implied(
@@ -151,41 +160,93 @@ def listed_with_implied(active: Iterable[str], by: Mapping[str, Iterable[str]]) 
 
 def implication_problems(name: str, declarations: Mapping[str, LayerDeclaration]) -> list[str]:
     """Why `name` cannot be active with what it implies: an `implies` cycle among them, two
-    of them in one exclusive group, or one excluding another. Sentences naming the layers,
-    each said of the innermost layer implying both (`Flight implies CameraHigh and
-    CameraLow, ...` when Mission implies Flight)."""
+    of them in one exclusive group, or one excluding another. Sentences naming the layers
+    (at most `MAX_PROBLEMS`), each said of the innermost layer implying both (`Flight implies
+    CameraHigh and CameraLow, ...` when Mission implies Flight)."""
     implied = implied_layers(name, declarations)
     members = (name, *implied)
-    problems: list[str] = []
-    cycle = sorted(m for m in members if _on_a_cycle(m, declarations))
+    cycle = _cycle_members(members, declarations)
     if cycle:
-        problems.append(f"the declared 'implies' of {', '.join(cycle)} form a cycle")
-        return problems
-    brings = {m: {m, *implied_layers(m, declarations)} for m in members}
+        shown = ", ".join(cycle[:10]) + (f" and {len(cycle) - 10} more" if len(cycle) > 10 else "")
+        return [f"the declared 'implies' of {shown} form a cycle"]
+    member_set = set(members)
+    brings: dict[str, set[str]] = {}
 
     def pair(a: str, b: str) -> str:
         # `implied` lists the deeper layers first: the innermost one bringing both.
-        by = next(m for m in (*implied, name) if {a, b} <= brings[m])
-        a, b = sorted((a, b)) if by not in (a, b) else (by, b if a == by else a)
-        return f"{by} implies {b}" if a == by else f"{by} implies {a} and {b}"
+        for by in (*implied, name):
+            if by not in brings:
+                brings[by] = {by, *implied_layers(by, declarations)}
+            if {a, b} <= brings[by]:
+                break
+        if by in (a, b):
+            return f"{by} implies {b if a == by else a}"
+        first, second = sorted((a, b))
+        return f"{by} implies {first} and {second}"
 
-    for index, a in enumerate(members):
-        groups_a = _declaration(a, declarations).groups
-        excludes_a = _declaration(a, declarations).excludes
-        for b in members[index + 1 :]:
-            shared = sorted(groups_a & _declaration(b, declarations).groups)
-            if shared:
-                problems.append(f"{pair(a, b)}, both in exclusive group {shared[0]!r}")
-            elif b in excludes_a:
-                problems.append(f"{pair(a, b)}, and {a} excludes {b}")
-            elif a in _declaration(b, declarations).excludes:
-                problems.append(f"{pair(a, b)}, and {b} excludes {a}")
-    return list(dict.fromkeys(problems))
+    problems: list[str] = []
+    in_group: dict[str, str] = {}
+    for member in members:
+        declaration = _declaration(member, declarations)
+        for group in sorted(declaration.groups):
+            other = in_group.setdefault(group, member)
+            if other != member:
+                problems.append(f"{pair(other, member)}, both in exclusive group {group!r}")
+        for excluded in sorted(declaration.excludes & member_set - {member}):
+            problems.append(f"{pair(member, excluded)}, and {member} excludes {excluded}")
+        if len(problems) >= MAX_PROBLEMS:
+            break
+    return list(dict.fromkeys(problems))[:MAX_PROBLEMS]
 
 
-def _on_a_cycle(name: str, declarations: Mapping[str, LayerDeclaration]) -> bool:
-    direct = _declaration(name, declarations).implies
-    return any(d == name or name in implied_layers(d, declarations) for d in direct)
+# How many contradictions one refusal names at most (answers stay small).
+MAX_PROBLEMS = 5
+
+
+def _cycle_members(
+    members: Iterable[str], declarations: Mapping[str, LayerDeclaration]
+) -> list[str]:
+    """The layers among `members` (a layer and what it implies) on an `implies` cycle:
+    those reachable from themselves, found by one iterative depth-first search (Tarjan's
+    strongly connected components), so long chains cost linear time."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    on_stack: set[str] = set()
+    stack: list[str] = []
+    cyclic: list[str] = []
+    for root in members:
+        if root in index:
+            continue
+        work = [(root, _implied_of(root, declarations))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            layer, pending = work[-1]
+            if pending:
+                implied = pending.pop()
+                if implied not in index:
+                    index[implied] = low[implied] = len(index)
+                    stack.append(implied)
+                    on_stack.add(implied)
+                    work.append((implied, _implied_of(implied, declarations)))
+                elif implied in on_stack:
+                    low[layer] = min(low[layer], index[implied])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[layer])
+            if low[layer] == index[layer]:
+                component = []
+                while True:
+                    top = stack.pop()
+                    on_stack.discard(top)
+                    component.append(top)
+                    if top == layer:
+                        break
+                if len(component) > 1 or layer in _declaration(layer, declarations).implies:
+                    cyclic += component
+    return sorted(set(cyclic))
 
 
 def _declaration(name: str, declarations: Mapping[str, LayerDeclaration]) -> LayerDeclaration:

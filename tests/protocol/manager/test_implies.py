@@ -263,3 +263,15 @@ def test_published_states_are_full_snapshots_with_the_implied_layers() -> None:
     actions = protocol.receive_command(ActivationCommand(1, activate=("Mission",)), 2.0)
     published = [a.state.active for a in actions if isinstance(a, PublishState)]
     assert published == [("CameraHigh", "Propulsion", "Flight", "Mission")]
+
+
+def test_a_long_chain_from_the_network_is_no_recursion_and_a_long_cycle_is_named() -> None:
+    chain = [layer(f"L{i}", implies=f"L{i + 1}") for i in range(5000)] + [layer("L5000")]
+    declarations = merge_declarations(chain)
+    assert len(implied_layers("L0", declarations)) == 5000
+    assert implication_problems("L0", declarations) == []
+    looped = merge_declarations([*chain[:-1], layer("L5000", implies="L1")])
+    (problem,) = implication_problems("L0", looped)
+    assert problem.startswith("the declared 'implies' of L1, L10, L100,")
+    assert problem.endswith(" and 4990 more form a cycle"), "answers stay small"
+    assert "L0," not in problem, "L0 leads into the cycle but is not on it"
