@@ -275,3 +275,20 @@ def test_a_long_chain_from_the_network_is_no_recursion_and_a_long_cycle_is_named
     assert problem.startswith("the declared 'implies' of L1, L10, L100,")
     assert problem.endswith(" and 4990 more form a cycle"), "answers stay small"
     assert "L0," not in problem, "L0 leads into the cycle but is not on it"
+
+
+def test_implies_from_the_network_is_checked_like_every_relation() -> None:
+    from contextros.protocol.validation import MAX_RELATIONS, declaration_problems
+
+    bad = LayerDeclaration("Flight", implies=frozenset({"not a name"}))
+    assert declaration_problems(bad) == [
+        "layer 'Flight' implies entry 'not a name' is not an identifier"
+    ]
+    many = LayerDeclaration("Flight", implies=frozenset(f"P{i}" for i in range(MAX_RELATIONS + 1)))
+    (problem,) = declaration_problems(many)
+    assert f"more than {MAX_RELATIONS}" in problem
+    protocol = manager(*DRONE)
+    epoch = protocol.state.epoch
+    protocol.receive_status(ParticipantReport("/evil", "1", layers=(bad,)), 2.0)
+    assert "Flight" in protocol.declarations() and protocol.state.epoch == epoch
+    assert protocol.declarations()["Flight"].implies == {"Propulsion", "CameraHigh"}
