@@ -268,3 +268,31 @@ def test_timer_info_coroutine_guards_and_an_event_of_a_destroyed_entity(
     assert not list(node.subscriptions) and not events
     loop.shutdown()
     node.destroy_node()
+
+
+def test_subscriptions_of_one_topic_each_get_every_message_once_in_order(
+    context: Context,
+) -> None:
+    """A wake-up that runs one subscription of a topic also takes what its siblings (the
+    other subscriptions of that topic in these nodes) got meanwhile: each message still
+    reaches each of them exactly once, in order."""
+    node = Node("wait_loop_siblings", context=context)
+    got: dict[int, list[str]] = {0: [], 1: [], 2: []}
+    for index in got:
+        node.create_subscription(String, "wait_loop/siblings", got[index].append, 100)
+    publisher = node.create_publisher(String, "wait_loop/siblings", 100)
+    loop = WaitLoop([node], context=context)
+    deadline = time.monotonic() + 10.0
+    while publisher.get_subscription_count() < 3 and time.monotonic() < deadline:
+        loop.spin_once(0.01)
+    sent = [String(data=str(n)) for n in range(50)]
+    for message in sent:
+        publisher.publish(message)
+    while any(len(messages) < len(sent) for messages in got.values()):
+        assert time.monotonic() < deadline, {index: len(m) for index, m in got.items()}
+        loop.spin_once(0.01)
+    for _ in range(5):
+        loop.spin_once(0.01)
+    assert all(messages == sent for messages in got.values())
+    loop.shutdown()
+    node.destroy_node()

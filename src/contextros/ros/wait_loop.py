@@ -77,6 +77,8 @@ class WaitLoop:
         self._event_handles: list[Any] = []
         self._event_indices: list[int] = []
         self._timer_info_arguments: dict[Any, str] = {}
+        # Per subscription, the others on its topic (see `_take_from_siblings`).
+        self._siblings: dict[Any, tuple[Any, ...]] = {}
         # Ready entities run kind by kind, in this order (as rclpy's executor orders them).
         self._runners: tuple[tuple[str, Callable[[Any], None]], ...] = (
             ("timer", self._run_timer),
@@ -109,22 +111,12 @@ class WaitLoop:
             by_pointer = self._by_pointer[kind]
             if not by_pointer:
                 continue
-            for pointer in wait_set.get_ready_entities(kind):
-                entity = by_pointer.get(pointer)
-                if entity is None:
-                    continue
-                handle = entity.handle
-                try:
-                    handle.__enter__()
-                except InvalidHandle:
-                    # Destroyed (its own destroy(), or its node's destroy_* in a callback of
-                    # this wake-up) while still listed: let go of at the next wake-up.
-                    self._entities = ()
-                    continue
-                try:
-                    run(entity)
-                finally:
-                    handle.__exit__(None, None, None)
+            ready = [by_pointer.get(pointer) for pointer in wait_set.get_ready_entities(kind)]
+            for entity in ready:
+                if entity is not None:
+                    self._run_entity(entity, run)
+            if kind == "subscription" and self._siblings and ready:
+                self._take_from_siblings(ready)
         for waitable in ready_waitables:
             try:
                 data = waitable.take_data()
@@ -132,6 +124,33 @@ class WaitLoop:
                 self._entities = ()
                 continue
             _run_to_completion(waitable.execute(data))
+
+    def _run_entity(self, entity: Any, run: Callable[[Any], None]) -> None:
+        handle = entity.handle
+        try:
+            handle.__enter__()
+        except InvalidHandle:
+            # Destroyed (its own destroy(), or its node's destroy_* in a callback of this
+            # wake-up) while still listed: let go of at the next wake-up.
+            self._entities = ()
+            return
+        try:
+            run(entity)
+        finally:
+            handle.__exit__(None, None, None)
+
+    def _take_from_siblings(self, ready: list[Any]) -> None:
+        """A message that came to one subscription of a topic came to every subscription
+        of that topic in these nodes (each context node's participant subscribes to the
+        manager's state) within microseconds: the copies that arrived while the ready ones
+        ran are taken now (a take that finds none costs 1 µs), not one wake-up later (a
+        wake-up of 8 context nodes costs about 70 µs)."""
+        done = set(ready)
+        for entity in ready:
+            for sibling in self._siblings.get(entity, ()):
+                if sibling not in done:
+                    done.add(sibling)
+                    self._run_entity(sibling, self._run_subscription)
 
     def _fill(self) -> None:
         """The wait set, cleared and given every entity again (rcl_wait empties it), one
@@ -159,7 +178,7 @@ class WaitLoop:
         self._wait_set = None
         self._held.close()
         self._entities = ()
-        self._handles, self._by_pointer = {}, {}
+        self._handles, self._by_pointer, self._siblings = {}, {}, {}
         self._waitables, self._event_handlers, self._event_handles = [], [], []
         self._event_indices = []
 
@@ -208,6 +227,15 @@ class WaitLoop:
         ):
             self._handles[kind] = [entity.handle for entity in members]
             self._by_pointer[kind] = {entity.handle.pointer: entity for entity in members}
+        by_topic: dict[str, list[Any]] = {}
+        for subscription in subscriptions:
+            by_topic.setdefault(subscription.topic_name, []).append(subscription)
+        self._siblings = {
+            subscription: tuple(other for other in same if other is not subscription)
+            for same in by_topic.values()
+            if len(same) > 1
+            for subscription in same
+        }
         self._timer_info_arguments = {
             timer: argument for timer in timers if (argument := _timer_info_argument(timer))
         }
