@@ -36,7 +36,9 @@ from benchmarks.code_before import before_environment
 NODE_COUNTS = (1, 16, 64)
 ROUNDS = 40
 BLOCK = 10
-DOMAINS = {"after": 81, "before": 82}
+# The ROS domains of the two systems (`CONTEXTROS_BENCH_DOMAIN=N`: N and N + 1 instead).
+_FIRST = int(os.environ.get("CONTEXTROS_BENCH_DOMAIN", "81"))
+DOMAINS = {"after": _FIRST, "before": _FIRST + 1}
 TARGET_CPU_PER_PARTICIPANT_MS = 0.1
 
 

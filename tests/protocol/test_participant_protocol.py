@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import math
+from dataclasses import replace
+
 import pytest
 
 from contextros.protocol import (
     ApplyState,
     LayerDeclaration,
     LayerState,
+    ManagerLost,
     ParticipantProtocol,
     PublishStatus,
 )
@@ -203,3 +207,30 @@ def test_a_memoryless_manager_recovers_a_handed_over_process_s_layers() -> None:
     (state,) = [a.state for a in manager.tick(1.0) if isinstance(a, PublishState)]
     assert state.active == ("Night",) and state.epoch > 5
     assert state.reason == "recovered from /q"
+
+
+def test_the_heartbeat_period_is_the_longer_one_the_manager_asks_for() -> None:
+    """As the C++ participant's test of the same name."""
+    p = ParticipantProtocol("/p", "inc-1", (LayerDeclaration("Night"),), 0.25, 3.0)
+    p.announce(0.0)
+    p.tick(0.05)  # the announcement's repeats
+    p.tick(0.15)
+    slower = LayerState(1, (), manager_id="m1", status_period=2.0)  # many participants
+    p.receive_state(slower, now=0.2)  # a new manager: reported at once, and repeated
+    p.applied(slower, now=0.2)
+    p.tick(0.25)
+    (last,) = p.tick(0.35)
+    assert isinstance(last, PublishStatus) and last.report.applied_epoch == 1
+    assert p.status_period == 2.0 and p.next_tick == pytest.approx(0.35 + 1.6)
+    assert p.tick(1.0) == [], "no heartbeat every 0.25 s any more"
+    p.receive_state(slower, now=1.5)  # its heartbeat: the manager is still there
+    assert p.tick(1.9) == []
+    assert len(p.tick(1.95)) == 1, "after 80% of the period"
+    p.receive_state(replace(slower, status_period=0.1), now=1.96)
+    assert p.status_period == 0.25, "never below the node's own period"
+    p.receive_state(replace(slower, status_period=1e9), now=1.97)
+    assert p.status_period == 60.0, "a forged period silences the node for a minute at most"
+    p.receive_state(replace(slower, status_period=math.nan), now=1.98)
+    assert p.status_period == 0.25
+    lost = p.tick(5.0)
+    assert isinstance(lost[0], ManagerLost) and p.status_period == 0.25

@@ -32,8 +32,13 @@ msg::LayerInfo layer_to_msg(const LayerInfo& layer) {
 }  // namespace
 
 LayerState state_from_msg(const msg::LayerState& state) {
-  return LayerState{state.epoch,      state.active_layers, state.requester, state.reason,
-                    state.manager_id, state.stamp.sec + state.stamp.nanosec * 1e-9};
+  return LayerState{state.epoch,
+                    state.active_layers,
+                    state.requester,
+                    state.reason,
+                    state.manager_id,
+                    state.stamp.sec + state.stamp.nanosec * 1e-9,
+                    state.status_period};
 }
 
 msg::ParticipantStatus report_to_msg(const ParticipantReport& report) {

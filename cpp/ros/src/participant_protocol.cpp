@@ -137,6 +137,18 @@ std::vector<std::string> state_problems(const LayerState& state) {
 
 // -- the state machine ----------------------------------------------------------------------
 
+namespace {
+
+// The manager's `status_period` as a participant takes it: a number within bounds (0, NaN
+// or negative: none).
+Clock::duration asked_period(double seconds) {
+  if (!(seconds > 0.0)) return Clock::duration::zero();
+  const double bounded = std::min(seconds, static_cast<double>(max_status_period.count()));
+  return std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(bounded));
+}
+
+}  // namespace
+
 ParticipantProtocol::ParticipantProtocol(std::string node, std::string incarnation,
                                          std::vector<LayerInfo> layers,
                                          Clock::duration heartbeat_period,
@@ -146,6 +158,7 @@ ParticipantProtocol::ParticipantProtocol(std::string node, std::string incarnati
       incarnation_(std::move(incarnation)),
       layers_(std::move(layers)),
       heartbeat_period_(heartbeat_period),
+      status_period_(heartbeat_period),
       manager_timeout_(manager_timeout),
       repeats_(std::move(repeats)) {}
 
@@ -184,6 +197,7 @@ void ParticipantProtocol::continue_from(const ParticipantProtocol& previous) {
   manager_id_ = previous.manager_id_;
   manager_lost_ = previous.manager_lost_;
   manager_heard_ = previous.manager_heard_;
+  status_period_ = previous.status_period_;
 }
 
 ParticipantActions ParticipantProtocol::announce(Clock::time_point now) {
@@ -199,6 +213,9 @@ ParticipantActions ParticipantProtocol::receive_state(const LayerState& state,
   if (!problems.empty()) {
     problems.resize(std::min<std::size_t>(problems.size(), 5));
     return {StateRejected{std::move(problems)}};
+  }
+  if (now) {
+    status_period_ = std::max(heartbeat_period_, asked_period(state.status_period));
   }
   ParticipantActions actions = heard_manager(state.manager_id, now);
   if (state.epoch == 0 || state.epoch <= newest_epoch()) {
@@ -297,12 +314,13 @@ ParticipantActions ParticipantProtocol::tick(Clock::time_point now) {
   if (!manager_lost_ && silent > manager_timeout_) {
     manager_lost_ = true;
     loss_seen_ = now;
+    status_period_ = heartbeat_period_;  // whichever manager comes next
     actions.emplace_back(ManagerLost{silent});
   }
   const bool due_repeat = !repeat_at_.empty() && now >= repeat_at_.front();
   // 80% of the period: a timer firing a little early must not skip a whole beat (the Python
   // participant did, and lost every other heartbeat).
-  const bool due_beat = !last_sent_ || now - *last_sent_ >= heartbeat_period_ * 4 / 5;
+  const bool due_beat = !last_sent_ || now - *last_sent_ >= status_period_ * 4 / 5;
   if (due_repeat || due_beat || !actions.empty()) {
     repeat_at_.erase(std::remove_if(repeat_at_.begin(), repeat_at_.end(),
                                     [&](Clock::time_point at) { return at <= now; }),
@@ -318,7 +336,7 @@ Clock::time_point ParticipantProtocol::next_tick() const {
   if (!last_sent_) {
     return Clock::time_point::min();
   }
-  Clock::time_point next = *last_sent_ + heartbeat_period_;
+  Clock::time_point next = *last_sent_ + status_period_;
   if (!repeat_at_.empty()) {
     next = std::min(next, repeat_at_.front());
   }

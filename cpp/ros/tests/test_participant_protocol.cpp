@@ -142,6 +142,37 @@ TEST(ParticipantProtocol, HeartbeatPeriodAndRepeatsOfANewReport) {
   EXPECT_TRUE(only_report(p.leave()).leaving);
 }
 
+TEST(ParticipantProtocol, TheHeartbeatPeriodIsTheLongerOneTheManagerAsksFor) {
+  ParticipantProtocol p("/p", "inc-1", {LayerInfo{"Night", {}, {}, {}, ""}}, 250ms, 3s);
+  p.announce(t0);
+  p.tick(t0 + 50ms);  // the announcement's repeats
+  p.tick(t0 + 150ms);
+  LayerState slower = state(1);
+  slower.status_period = 2.0;  // many participants: the manager asks for a status every 2 s
+  p.receive_state(slower, t0 + 200ms);  // a new manager: reported at once, and repeated
+  p.applied(slower, t0 + 200ms);
+  p.tick(t0 + 250ms);
+  EXPECT_EQ(only_report(p.tick(t0 + 350ms)).applied_epoch, 1u) << "reported last at 350 ms";
+  EXPECT_EQ(p.status_period(), 2s);
+  EXPECT_EQ(p.next_tick(), t0 + 2350ms);
+  EXPECT_TRUE(p.tick(t0 + 1000ms).empty()) << "no heartbeat every 0.25 s any more";
+  p.receive_state(slower, t0 + 1500ms);  // its heartbeat: the manager is still there
+  EXPECT_TRUE(p.tick(t0 + 1900ms).empty());
+  EXPECT_EQ(only_report(p.tick(t0 + 1950ms)).applied_epoch, 1u) << "after 80% of the period";
+  LayerState faster = state(1);
+  faster.status_period = 0.1;  // never below the node's own period
+  p.receive_state(faster, t0 + 1960ms);
+  EXPECT_EQ(p.status_period(), 250ms);
+  LayerState forged = state(1);
+  forged.status_period = 1e9;  // a forged period silences the node for a minute at most
+  p.receive_state(forged, t0 + 1970ms);
+  EXPECT_EQ(p.status_period(), 60s);
+  ParticipantActions lost = p.tick(t0 + 5s);
+  ASSERT_EQ(lost.size(), 2u);
+  EXPECT_TRUE(std::holds_alternative<ManagerLost>(lost[0]));
+  EXPECT_EQ(p.status_period(), 250ms) << "the manager lost: back to its own period";
+}
+
 TEST(ParticipantProtocol, AManagerSilentForItsTimeoutIsLostThenFoundAgain) {
   ParticipantProtocol p("/p", "inc-1", {LayerInfo{"Night", {}, {}, {}, ""}}, 250ms, 2s);
   p.announce(t0);

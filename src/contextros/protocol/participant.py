@@ -61,6 +61,9 @@ class ParticipantProtocol:
         self.layers = layers
         self.hosted: tuple[str, ...] = ()
         self.heartbeat_period = heartbeat_period
+        # This node's own heartbeat period: `heartbeat_period`, or longer if the manager
+        # asks for it (`status_period` with its states and heartbeats: many participants).
+        self.status_period = heartbeat_period
         self.manager_timeout = manager_timeout
         self.repeats = repeats
         self.applied_epoch = 0
@@ -108,6 +111,20 @@ class ParticipantProtocol:
         """When a repeat of the last report is due (the adapter wakes up for it), if any."""
         return self._repeat_at[0] if self._repeat_at else None
 
+    @property
+    def next_tick(self) -> float | None:
+        """When `tick` next has something to do (a heartbeat, a repeat, the manager's
+        liveness bound), if known: before that it returns nothing (the C++ participant's
+        wait loop sleeps until then; the simulation wakes a node only then)."""
+        if self._last_sent is None or self._manager_heard is None:
+            return None
+        due = self._last_sent + 0.8 * self.status_period
+        if self._repeat_at:
+            due = min(due, self._repeat_at[0])
+        if not self.manager_lost:
+            due = min(due, self._manager_heard + self.manager_timeout + 1e-6)
+        return due
+
     def report(self, leaving: bool = False) -> ParticipantReport:
         return ParticipantReport(
             node=self.node,
@@ -144,6 +161,7 @@ class ParticipantProtocol:
         self.manager_id = previous.manager_id
         self.manager_lost = previous.manager_lost
         self._manager_heard = previous._manager_heard
+        self.status_period = previous.status_period
 
     # -- events -----------------------------------------------------------------------------
 
@@ -153,10 +171,13 @@ class ParticipantProtocol:
         return [self._send(now, repeat=True, always=True)]
 
     def receive_state(self, state: LayerState, now: float | None = None) -> list[ParticipantAction]:
-        """A state from the manager (reliable topic or heartbeat): apply it if newer."""
+        """A state from the manager (reliable topic or heartbeat): apply it if newer; its
+        `status_period` is this node's heartbeat period from now on (0: its own)."""
         problems = state_problems(state)
         if problems:
             return [StateRejected(tuple(problems[:5]))]
+        if now is not None:
+            self.status_period = max(self.heartbeat_period, _period(state.status_period))
         actions = self._heard_manager(state.manager_id, now)
         if state.epoch == 0 or state.epoch <= self.newest_epoch:
             return actions
@@ -237,11 +258,12 @@ class ParticipantProtocol:
         if not self.manager_lost and silent > self.manager_timeout:
             self.manager_lost = True
             self._loss_seen = now
+            self.status_period = self.heartbeat_period  # whichever manager comes next
             actions.append(ManagerLost(silent))
         due_repeat = bool(self._repeat_at) and now >= self._repeat_at[0] - 1e-9
         # The timer that calls this runs with the heartbeat's period: with a strict
         # comparison its jitter skipped every other beat (measured: 1.7 reports/s, not 4).
-        due_beat = self._last_sent is None or now - self._last_sent >= 0.8 * self.heartbeat_period
+        due_beat = self._last_sent is None or now - self._last_sent >= 0.8 * self.status_period
         if due_repeat or due_beat or actions:
             self._repeat_at = [t for t in self._repeat_at if t > now + 1e-9]
             actions.append(self._send(now))
@@ -280,6 +302,19 @@ class ParticipantProtocol:
         if repeat and (always or lossy):
             self._repeat_at = [now + delay for delay in self.repeats]
         return PublishStatus(self.report())
+
+
+# The longest heartbeat period a manager's message can ask for (a forged one must not
+# silence a node for long): a minute, enough for 48,000 participants at the
+# manager's default rate.
+MAX_STATUS_PERIOD = 60.0
+
+
+def _period(asked: float) -> float:
+    """The manager's `status_period` as a participant takes it: a number within bounds."""
+    if not isinstance(asked, (int, float)) or not asked > 0:  # also NaN
+        return 0.0
+    return min(float(asked), MAX_STATUS_PERIOD)
 
 
 def _printable(text: str, limit: int = 1000) -> str:

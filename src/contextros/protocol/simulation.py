@@ -34,6 +34,7 @@ from __future__ import annotations
 import argparse
 import hashlib
 import heapq
+import math
 import random
 import sys
 import time
@@ -48,6 +49,7 @@ from contextros.protocol.events import (
     ApplyState,
     ManagerAction,
     ParticipantAction,
+    ParticipantDropped,
     ParticipantReport,
     PublishHeartbeat,
     PublishProposal,
@@ -135,6 +137,11 @@ class SimulationReport:
     idle_messages_per_second: float = 0.0
     idle_manager_cpu_per_second: float = 0.0
     time_to_converge: float = 0.0  # simulated seconds after the heal
+    # The heartbeat period the manager asked for when idle, its liveness bound, and the
+    # longest time from a node's crash to its drop (a few nodes, crashed at the end).
+    status_period: float = 0.0
+    liveness_bound: float = 0.0
+    detection_time: float = 0.0
     commands: int = 0
     answers: int = 0
     aborted_atomic: int = 0
@@ -196,6 +203,7 @@ class Simulation:
         self.state_file: ManagerMemory | None = None
         self.commands: dict[int, _Command] = {}
         self._request_id = 0
+        self.dropped: dict[str, float] = {}  # node -> when the manager last dropped it
 
     # -- set-up ---------------------------------------------------------------------------
 
@@ -238,6 +246,19 @@ class Simulation:
                 copies = 2
         for _ in range(copies):
             self._schedule(self.now + self._delay(), kind, target, generation, payload)
+
+    def _wake_when_due(self, index: int) -> None:
+        """Wake the node's heartbeat timer when its tick has something to do: at a repeat,
+        else at the first beat of its timer (every `heartbeat_period`) when something is
+        due; the beats in between would do nothing (`next_tick`)."""
+        protocol = self.nodes[index].protocol
+        repeat, due = protocol.next_repeat, protocol.next_tick
+        if repeat is not None and (due is None or repeat <= due):
+            self._wake(index, repeat)
+            return
+        period = protocol.heartbeat_period
+        beats = 1 if due is None else max(1, math.ceil((due - self.now) / period - 1e-9))
+        self._wake(index, self.now + beats * period)
 
     def _wake(self, index: int, at: float) -> None:
         node = self.nodes[index]
@@ -287,7 +308,6 @@ class Simulation:
                     return  # replaced by an earlier wake
                 node.next_wake = 0.0
                 self._run_participant(target, protocol.tick(self.now))
-                self._wake(target, self.now + protocol.heartbeat_period)
             elif kind == _STATE:
                 assert isinstance(payload, LayerState)
                 self._run_participant(target, protocol.receive_state(payload, self.now))
@@ -304,9 +324,7 @@ class Simulation:
                     self.invariants, protocol, payload, self.now, application_veto
                 )
                 self._run_participant(target, actions)
-            repeat = protocol.next_repeat
-            if repeat is not None:
-                self._wake(target, repeat)
+            self._wake_when_due(target)
 
     def _manager_call(self, call: Callable[[ManagerProtocol], list[ManagerAction]]) -> None:
         manager = self.manager
@@ -330,6 +348,8 @@ class Simulation:
                 self._broadcast(_PROPOSAL, action.state)
             elif isinstance(action, Reply):
                 self._answer(action.request_id, action.result)
+            elif isinstance(action, ParticipantDropped):
+                self.dropped[action.node] = self.now
 
     def _broadcast(self, kind: int, state: LayerState) -> None:
         for index, node in enumerate(self.nodes):
@@ -490,8 +510,13 @@ class Simulation:
         startup = self.now + 3 * scenario.settings.recovery_window + 10
         if not self.run_until(startup, self._converged, check_every=0.01):
             self._fail("the system did not converge after start-up")
+        # Idle: once every node is on the heartbeat period the manager asks for (one period
+        # of it), over two of them (one second at least).
+        assert self.manager is not None
+        status_period = self.manager.status_period
+        self.run_until(self.now + status_period)
         idle_from, messages, cpu = self.now, self.counters.messages, self.counters.manager_cpu
-        self.run_until(self.now + 4 * period)
+        self.run_until(self.now + max(4 * period, 2 * status_period))
         idle = self.now - idle_from
         report.idle_messages_per_second = (self.counters.messages - messages) / idle
         report.idle_manager_cpu_per_second = (self.counters.manager_cpu - cpu) / idle
@@ -529,6 +554,9 @@ class Simulation:
         # (the fault phase's timeouts are 3 s at most; an atomic one waits twice).
         self.run_until(self.now + 7.0, self._answered, check_every=0.05)
         self._sync_activation(scenario.clean_activations)
+        report.status_period = self.manager.status_period
+        report.liveness_bound = self.manager.liveness_bound(self.now)
+        report.detection_time = self._detection_time()
         for request, asked in self.commands.items():
             if asked.answer is None and asked.manager_generation == self.manager_generation:
                 self._fail(f"request {request} ({asked.command}) was never answered")
@@ -540,6 +568,21 @@ class Simulation:
         report.wall_time = time.perf_counter() - started
         report.trace = self._trace.hexdigest()[:16]
         return report
+
+    def _detection_time(self, count: int = 3) -> float:
+        """Crash `count` nodes (for good, on a clean link) and return the longest time until
+        the manager dropped one: its liveness bound less the time since the node's last
+        heartbeat, plus up to one manager tick."""
+        chosen = self.rng.sample(range(len(self.nodes)), min(count, len(self.nodes)))
+        names = {self.nodes[index].name for index in chosen}
+        for index in chosen:
+            self.nodes[index].alive = False
+        crashed, self.dropped = self.now, {}
+        assert self.manager is not None
+        limit = self.now + 2 * self.manager.liveness_bound(self.now) + 1.0
+        if not self.run_until(limit, lambda: names <= self.dropped.keys(), check_every=0.01):
+            self._fail(f"crashed nodes {sorted(names - self.dropped.keys())} never dropped")
+        return max(self.dropped[name] for name in names) - crashed
 
     def _answered(self) -> bool:
         generation = self.manager_generation
@@ -605,6 +648,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             f"{report.messages_per_activation:.0f} messages and "
             f"{report.manager_cpu_per_activation * 1e3:.2f} ms manager CPU per sync "
             f"activation, converged {report.time_to_converge:.2f} s after the heal; "
+            f"heartbeat period {report.status_period:.2f} s, a crashed node dropped after "
+            f"{report.detection_time:.2f} s (bound {report.liveness_bound:.1f} s); "
             f"{report.events} events in {report.wall_time:.1f} s; trace {report.trace}"
         )
     return 1 if failed else 0

@@ -37,6 +37,9 @@ class LayerState:
     # the manager, wall-clock time once it crossed the wire or a file); not part of identity.
     stamp: float = field(default=0.0, compare=False)
     manager_id: str = field(default="", compare=False)
+    # Sent with it, not part of it: the heartbeat period (seconds) the manager asks of its
+    # participants while nothing changes; 0: their own (0.25 s by default).
+    status_period: float = field(default=0.0, compare=False)
 
     def to_json(self, wall_time: float | None = None) -> str:
         return json.dumps(

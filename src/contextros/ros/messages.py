@@ -60,6 +60,7 @@ def state_to_msg(state: LayerState, wall_time: float) -> Any:
         requester=state.requester,
         reason=state.reason,
         manager_id=state.manager_id,
+        status_period=state.status_period,
     )
 
 
@@ -71,6 +72,7 @@ def state_from_msg(msg: Any) -> LayerState:
         reason=msg.reason,
         stamp=stamp_to_seconds(msg.stamp),
         manager_id=msg.manager_id,
+        status_period=msg.status_period,
     )
 
 

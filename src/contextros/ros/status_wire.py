@@ -40,6 +40,7 @@ _U32, _U64 = struct.Struct("<I").unpack_from, struct.Struct("<Q").unpack_from
 _PACK_U32, _PACK_U64 = struct.Struct("<I").pack, struct.Struct("<Q").pack
 _PACK_TIME = struct.Struct("<iI").pack
 _TIME = struct.Struct("<iI").unpack_from
+_F32 = struct.Struct("<f").unpack_from
 # What is kept of nodes' last declarations (participants repeat theirs in every status),
 # before any check: bounded whatever a sender makes up. All is forgotten when one is full.
 _CACHE_NODES = 4096
@@ -275,13 +276,16 @@ def _state_from_bytes(data: bytes) -> LayerState:
         raise ValueError(f"state field active_layers claims {entries} entries")
     active = tuple([reader.string("active_layers") for _ in range(entries)])
     sec, nanosec = _TIME(data, reader.take("stamp", 8, align=4))
+    requester, reason = reader.string("requester"), reader.string("reason")
+    manager_id = reader.string("manager_id")
     return LayerState(
         epoch=epoch,
         active=active,
         stamp=float(sec) + float(nanosec) * 1e-9,  # as messages.stamp_to_seconds
-        requester=reader.string("requester"),
-        reason=reader.string("reason"),
-        manager_id=reader.string("manager_id"),
+        requester=requester,
+        reason=reason,
+        manager_id=manager_id,
+        status_period=_F32(data, reader.take("status_period", 4))[0],
     )
 
 

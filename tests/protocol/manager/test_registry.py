@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import pytest
+
 from contextros.protocol import (
     LayerDeclaration,
     ParticipantConflict,
     ParticipantDropped,
     ParticipantJoined,
+    PublishHeartbeat,
     Reply,
 )
 from tests.protocol.manager.scenario import (
@@ -162,3 +165,31 @@ def test_time_the_manager_did_not_run_is_nobodys_silence() -> None:
         system.advance(0.25)
     dropped = [a.node for a in system.log if isinstance(a, ParticipantDropped)]
     assert dropped == ["/c"]
+
+
+def test_the_heartbeat_period_grows_with_the_participants_and_the_liveness_bound_with_it() -> None:
+    """Beyond `status_rate` statuses per second at the settings' period, the manager asks
+    for a longer period (25% headroom) and waits as many periods before a drop; back under
+    40% of the rate, the shorter period again, with the longer bound for as long as a
+    participant may not have heard it yet."""
+    nodes = ("/a", "/b", "/c", "/d", "/e")
+    manager = started(nodes, status_rate=8.0)  # 5 participants: 20 statuses/s at 0.25 s
+    period = 1.25 * 5 / 8.0
+    assert manager.status_period == pytest.approx(period)
+    assert manager.liveness_bound(1.0) == pytest.approx(SETTINGS.liveness_timeout * period / 0.25)
+    (beat,) = [a for a in manager.tick(1.3) if isinstance(a, PublishHeartbeat)]
+    assert beat.state.status_period == pytest.approx(period), "the heartbeat carries it"
+    manager.receive_status(report("/a"), 6.0)  # the others fall silent at 1.0 s
+    assert not [a for a in manager.tick(6.0) if isinstance(a, ParticipantDropped)], (
+        "5 s of silence: within the longer bound (6.25 s)"
+    )
+    dropped = [a.node for a in manager.tick(7.3) if isinstance(a, ParticipantDropped)]
+    assert dropped == ["/b", "/c", "/d", "/e"]
+    manager.tick(7.35)
+    assert manager.status_period == SETTINGS.status_period, "1 participant: back to 0.25 s"
+    assert manager.liveness_bound(7.4) == pytest.approx(6.25), "until they all heard it"
+    assert manager.liveness_bound(7.35 + 6.26) == SETTINGS.liveness_timeout
+    dropped = [a.node for a in manager.tick(12.1) if isinstance(a, ParticipantDropped)]
+    assert dropped == [], "/a, silent 6.1 s, still under the longer bound"
+    dropped = [a.node for a in manager.tick(12.4) if isinstance(a, ParticipantDropped)]
+    assert dropped == ["/a"], "/a silent 6.4 s, past it"

@@ -66,6 +66,7 @@ class AtomicVotes(ManagerBase):
             reason=command.reason,
             stamp=now,
             manager_id=self.settings.manager_id,
+            status_period=self._status_period,
         )
         self._transaction = Transaction(
             command=command,

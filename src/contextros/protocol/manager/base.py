@@ -77,6 +77,12 @@ class ManagerBase(ABC):
         self._next_beat = now
         self._repeats: list[float] = []
         self._rejections_logged: dict[str, float] = {}
+        # Liveness (registry.py): the heartbeat period announced to the participants, the
+        # longer bound of a longer period announced before (until when it holds), and a
+        # time no participant was heard before (no need to look for silent ones until then).
+        self._status_period = self.settings.status_period
+        self._earlier_bound = (0.0, 0.0)
+        self._oldest_heard = now
         # The open atomic activation, if any; commands wait behind it. Every proposed epoch
         # is used once: an aborted one is skipped, so a vote always names one proposal.
         self._transaction: Transaction | None = None
@@ -143,6 +149,7 @@ class ManagerBase(ABC):
             reason=reason,
             stamp=now,
             manager_id=self.settings.manager_id,
+            status_period=self._status_period,
         )
         # Repeat it on the best-effort heartbeat shortly after: on a lossy link the reliable
         # state can wait seconds behind retransmissions, a repeat does not.
@@ -164,6 +171,8 @@ class ManagerBase(ABC):
             beat = self._state
         else:  # nothing published yet: still with its id, so another manager hears this one
             beat = replace(self._state, manager_id=self.settings.manager_id)
+        if beat.status_period != self._status_period:  # it carries the current period
+            beat = replace(beat, status_period=self._status_period)
         return [PublishHeartbeat(beat)]
 
     def _someone_lags(self) -> bool:

@@ -25,6 +25,8 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
 
     def receive_status(self, report: ParticipantReport, now: float) -> list[ManagerAction]:
         self._order_cache = None
+        if self._heard_again(report, now):
+            return []
         problems = self._report_problems(report)
         if problems:
             return self._rejected(report, problems, now)
@@ -58,6 +60,20 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         actions += self._settle_pending(now, examine=(key,))
         actions += self._count_votes(now, voter=key if known is not None else None)
         return actions
+
+    def _heard_again(self, report: ParticipantReport, now: float) -> bool:
+        """A heartbeat repeating the status last accepted, with no activation waiting: it
+        only proves the node alive (what it says was validated when first heard)."""
+        node, incarnation = report.node, report.incarnation
+        if type(node) is not str or type(incarnation) is not str or self._pending:
+            return False
+        known = self._participants.get((node, incarnation))
+        if known is None or known.presumed or self._transaction is not None:
+            return False
+        if known.report != report:
+            return False
+        known.last_heard = now
+        return True
 
     def receive_command(
         self, command: ActivationCommand, now: float, received: float | None = None
@@ -120,6 +136,7 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
     def tick(self, now: float) -> list[ManagerAction]:
         self._order_cache = None
         actions: list[ManagerAction] = self._expire_waiting(now)
+        self._adapt_status_period(now)
         if self._recovering_until is not None and now >= self._recovering_until:
             actions += self._finish_recovery(now)
         if self._recovering_until is None:

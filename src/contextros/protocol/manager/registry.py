@@ -213,15 +213,57 @@ class Registry(ManagerBase):
         on their way in. Every participant's last report moves forward by it."""
         for record in self._participants.values():
             record.last_heard += stall
+        self._oldest_heard += stall
+
+    @property
+    def status_period(self) -> float:
+        """The heartbeat period the manager asks of its participants (the adapter sends it
+        with every state and heartbeat): `settings.status_period` up to `status_rate`
+        statuses per second, longer beyond (see `_adapt_status_period`)."""
+        return self._status_period
+
+    def liveness_bound(self, now: float) -> float:
+        """The silence after which a participant is dropped: `liveness_timeout` at the
+        settings' period, as many of the announced periods beyond it; after the period
+        shortened, the longer bound holds until every participant had time to hear it."""
+        settings = self.settings
+        bound = settings.liveness_timeout * self._status_period / settings.status_period
+        earlier, until = self._earlier_bound
+        return max(bound, earlier) if now < until else bound
+
+    def _adapt_status_period(self, now: float) -> None:
+        """Keep the participants' statuses at `status_rate` per second at most: a longer
+        period once they would exceed it, a shorter one (not below the settings' period)
+        once they would stay under 40% of it. The period announced is 25% above the one
+        needed, so a few more participants do not change it again."""
+        settings = self.settings
+        period = self._status_period
+        count = len(self._participants)
+        within = count <= settings.status_rate * period
+        if within and (
+            period <= settings.status_period or count > 0.4 * settings.status_rate * period
+        ):
+            return
+        wanted = max(settings.status_period, 1.25 * count / settings.status_rate)
+        if wanted < period:  # participants still on the longer period keep its bound
+            self._earlier_bound = (self.liveness_bound(now), now + self.liveness_bound(now))
+        self._status_period = wanted
 
     def _drop_silent(self, now: float) -> list[ManagerAction]:
-        """Drop every participant silent for longer than `liveness_timeout`."""
-        bound = self.settings.liveness_timeout
-        silent = [
-            (key, now - record.last_heard)
-            for key, record in self._participants.items()
-            if now - record.last_heard > bound
-        ]
+        """Drop every participant silent for longer than the liveness bound (looked for
+        only once the oldest report known may be that old)."""
+        bound = self.liveness_bound(now)
+        if now - self._oldest_heard <= bound:
+            return []
+        silent = []
+        oldest = now
+        for key, record in self._participants.items():
+            heard = record.last_heard
+            if now - heard > bound:
+                silent.append((key, now - heard))
+            elif heard < oldest:
+                oldest = heard
+        self._oldest_heard = oldest
         actions: list[ManagerAction] = []
         for key, silent_for in sorted(silent):
             record = self._participants[key]

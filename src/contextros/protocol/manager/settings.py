@@ -13,6 +13,13 @@ class ManagerSettings:
     # twelve lost heartbeats in a row (5e-7 at 30% loss). With 2 s, a 30%-loss link with
     # delay jitter still saw a spurious drop in about 40 activations (benchmarks/lossy_link).
     liveness_timeout: float = 3.0
+    # The participants' heartbeat period `liveness_timeout` is made for (twelve of them), and
+    # the statuses per second the manager asks for at most when nothing changes: beyond
+    # `status_rate * status_period` participants (250), the period it announces with every
+    # state and heartbeat grows with their number, and the liveness bound with it (the same
+    # twelve heartbeats). The manager's liveness cost stays bounded; detection takes longer.
+    status_period: float = 0.25
+    status_rate: float = 1000.0
     default_timeout: float = 5.0
     # An atomic vote holds every later command, so it lasts at most this long whatever the
     # command's timeout (a node that never votes must not stall the system for an hour).

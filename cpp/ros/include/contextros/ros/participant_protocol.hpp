@@ -38,6 +38,9 @@ struct LayerState {
   std::string manager_id;
   // When the manager published it (wall clock, seconds since 1970); not part of identity.
   double stamp = 0.0;
+  // Sent with it, not part of it: the heartbeat period (seconds) the manager asks of its
+  // participants while nothing changes; 0: their own.
+  double status_period = 0.0;
 };
 
 // What a participant tells the manager (ParticipantStatus without the wall-clock stamp).
@@ -98,6 +101,9 @@ inline const std::vector<Clock::duration> default_repeats{std::chrono::milliseco
 // after the manager was last heard late (more than 1.6 heartbeat periods after the
 // message before). On a clean link the repeats only load the manager.
 inline constexpr std::chrono::seconds loss_memory{30};
+// The longest heartbeat period a manager's message can ask for (a forged one must not
+// silence a node for long).
+inline constexpr std::chrono::seconds max_status_period{60};
 // Epochs beyond 2**48 are never issued by an honest manager (docs/protocol.md).
 inline constexpr std::uint64_t max_epoch = std::uint64_t{1} << 48;
 
@@ -164,6 +170,8 @@ class ParticipantProtocol {
   const std::string& node() const { return node_; }
   const std::vector<std::string>& hosted() const { return hosted_; }
   bool manager_lost() const { return manager_lost_; }
+  // This node's heartbeat period: its own, or the longer one the manager asks for.
+  Clock::duration status_period() const { return status_period_; }
   // When tick() has something to do next: a heartbeat, a repeat, or the manager-lost check.
   Clock::time_point next_tick() const;
 
@@ -179,6 +187,7 @@ class ParticipantProtocol {
   std::vector<LayerInfo> layers_;
   std::vector<std::string> hosted_;
   Clock::duration heartbeat_period_;
+  Clock::duration status_period_;
   Clock::duration manager_timeout_;
   std::vector<Clock::duration> repeats_;
   std::vector<Clock::time_point> repeat_at_;
