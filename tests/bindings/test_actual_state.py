@@ -167,3 +167,15 @@ def test_a_binding_policy_from_python_is_checked() -> None:
     assert binding.policy == "restore"
     with pytest.raises(ValueError, match="drift policy 'reset': expected report, restore or infer"):
         ParameterBinding(Ref("Slow", at), "/base", "max_speed", 0.3, at, policy="reset")
+
+
+def test_a_node_gone_from_the_graph_drifts_but_is_not_set_back() -> None:
+    actual = state()
+    actual.configuration(["Outdoor"])
+    gone = Reading(None, "(node not in the ROS graph)", 1.0, 1.0, absent=True)
+    actual.read(("/propeller", ""), gone)
+    (drift,) = actual.drifts()
+    assert drift.seen == "(node not in the ROS graph)" and drift.policy == "restore"
+    assert actual.restore_due(1.0) == [], "no one to set"
+    read(actual, "/propeller", "", "unconfigured", 2.0)  # back, restarted
+    assert len(actual.restore_due(2.0)) == 1

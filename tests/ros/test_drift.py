@@ -5,6 +5,7 @@ restore`, bounded), or taken as a switch to the layer it matches (`on drift infe
 from __future__ import annotations
 
 import json
+import signal
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -235,6 +236,28 @@ def test_restore_brings_a_lifecycle_node_back(system: ProcessGroup, client: Laye
         5,
         "the restore's log line",
     )
+
+
+def test_a_restarted_lifecycle_node_is_seen_and_brought_back(
+    system: ProcessGroup, client: LayerClient
+) -> None:
+    """A lifecycle node restarting announces no transition: the manager sees it leave the
+    graph and come back (new event publishers), reads it, and sets it back (Gps)."""
+    settle(client, "Outdoor", "Gps")
+    assert propeller_state(client) == "active"
+    (plain,) = [c for c in system.children if c.name.startswith("plain") and c.popen.poll() is None]
+    plain.signal(signal.SIGTERM)
+    plain.wait_exit()
+    gps = wait_binding(client, "Gps", lambda b: b.drifted, "the propeller gone")
+    assert gps.observed == "(node not in the ROS graph)"
+    restarted = system.start("plain nodes, restarted", [str(HERE / "plain_nodes_process.py")])
+    restarted.wait_for(
+        lambda events: any(e["event"] == "transition" and e["to"] == "active" for e in events),
+        15,
+        "the restarted propeller activated by the manager",
+    )
+    assert propeller_state(client) == "active"
+    wait_binding(client, "Gps", lambda b: b.holds and not b.drifted, "Gps holding again")
 
 
 def test_infer_switches_to_the_layer_whose_bindings_hold(

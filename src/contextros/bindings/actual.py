@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from contextros.bindings import Bindings, ResolveNode
 from contextros.language.bindings import LifecycleBinding, ParameterBinding, ParameterValue
@@ -38,6 +38,7 @@ class Reading:
     shown: str
     wall: float
     noticed: float
+    absent: bool = False  # the node is not in the ROS graph (nothing to set back)
 
 
 @dataclass(frozen=True)
@@ -154,7 +155,7 @@ class ActualState:
             return
         previous = self.readings.get(key)
         if previous is not None and _same(previous.value, reading.value):
-            reading = Reading(reading.value, reading.shown, reading.wall, previous.noticed)
+            reading = replace(reading, noticed=previous.noticed)
         self.readings[key] = reading
         self._update()
 
@@ -225,7 +226,7 @@ class ActualState:
         changing it) until a switch sets it; `acted` then says so."""
         due = []
         for drift in self.drifts():
-            if drift.policy != "restore":
+            if drift.policy != "restore" or self.readings[drift.key].absent:
                 continue
             if drift.key in self._given_up:
                 self._actions[drift.index] = self._given_up[drift.key]

@@ -20,7 +20,7 @@ from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
 from rclpy.qos import qos_profile_parameter_events
 
-from contextros.bindings.actual import ActualState, BindingKey, Drift
+from contextros.bindings.actual import ActualState, BindingKey, Drift, Reading
 from contextros.bindings.inference import Inference, infer
 from contextros.ros.bindings import PRIMARY_STATES, BindingDriver, BindingError, python_value
 from contextros.ros.node_log import NodeLog
@@ -31,6 +31,9 @@ MAX_NODE_NAME = 256
 MAX_PARAMETERS_PER_EVENT = 64
 # A bound parameter or node that could not be read (not up yet) is tried again this late.
 RETRY_READ = 2.0
+# How often the ROS graph is looked at for bound nodes that left or (re)appeared (seconds):
+# a restarted lifecycle node publishes no transition, it is read when it appears.
+GRAPH_LOOK = 1.0
 
 # (activate, deactivate, reason): how an inferred switch is asked of the manager.
 SubmitSwitch = Callable[[tuple[str, ...], tuple[str, ...], str], None]
@@ -73,6 +76,10 @@ class BindingWatch:
             key: (now, _UNKNOWN) for key in self.actual.bound_keys()
         }
         self._retry_at = 0.0  # monotonic: when keys never read are tried again
+        self._node = node
+        # The bound nodes' event publishers (their gids) at the last look at the graph.
+        self._endpoints: dict[tuple[str, bool], set[bytes]] | None = None
+        self._graph_at = 0.0  # monotonic: the next look
         self._logged: set[tuple[int, float]] = set()  # drifts logged (binding, since)
         self._inferred = ""  # the last inference submitted or logged
         if self._parameters:
@@ -124,6 +131,9 @@ class BindingWatch:
         """What to read or set back now (None: nothing): call it when no switch runs."""
         self.switched(changed=False)
         now = time.monotonic()
+        if now >= self._graph_at:
+            self._graph_at = now + GRAPH_LOOK
+            self._look_at_graph()
         if now >= self._retry_at:
             self._retry_at = now + RETRY_READ
             for key in self.actual.bound_keys() - self.actual.readings.keys():
@@ -140,6 +150,33 @@ class BindingWatch:
             if drift.policy == "restore" and self.actual.given_up(drift.key):
                 self._log_drift(drift, f"{self.actual.state(drift.index).action}")
         return WatchJob(reads, restores) if reads or restores else None
+
+    def _look_at_graph(self) -> None:
+        """A bound node whose event publisher left the graph has nothing (a drift, not set
+        back: there is no one to set); one with a new publisher (it started, or restarted)
+        is read."""
+        # (node, its lifecycle state: not its parameters) -> its event publishers' gids
+        endpoints: dict[tuple[str, bool], set[bytes]] = {}
+        if self._parameters:
+            for info in self._node.get_publishers_info_by_topic("/parameter_events"):
+                name = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+                if name in self._parameters:
+                    endpoints.setdefault((name, False), set()).add(bytes(info.endpoint_gid))
+        for lifecycle in self.actual.lifecycle_nodes():
+            for info in self._node.get_publishers_info_by_topic(f"{lifecycle}/transition_event"):
+                endpoints.setdefault((lifecycle, True), set()).add(bytes(info.endpoint_gid))
+        before, self._endpoints = self._endpoints, endpoints
+        if before is None:
+            return
+        wall = time.time()
+        for key in self.actual.bound_keys():
+            watched = (key[0], not key[1])
+            now, then = endpoints.get(watched, set()), before.get(watched, set())
+            if then and not now:
+                gone = Reading(None, "(node not in the ROS graph)", wall, wall, absent=True)
+                self.actual.read(key, gone)
+            elif now - then:
+                self._pending[key] = (wall, _UNKNOWN)
 
     def finished(self, job: WatchJob) -> None:
         """A job's outcome (executor thread)."""
