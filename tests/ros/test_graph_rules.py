@@ -230,3 +230,35 @@ def test_a_recording_replays_the_graph_rules_decisions(client: LayerClient, tmp_
         ("rule Careful", ["Slow"]),
     ], report
     assert report["differences"] == [], report
+
+
+def test_a_node_that_leaves_has_no_value_and_is_asked_again_when_it_returns(
+    client: LayerClient, tmp_path: Path
+) -> None:
+    rules = tmp_path / "robot.layers"
+    rules.write_text(RULES, encoding="utf-8")
+    group = ProcessGroup()
+    node = Node("graph_rules_leaving_client", namespace="/gone")
+    gone = LayerClient(node, requester="pytest")
+    plain_nodes = [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/gone/drivers"]
+
+    def reading(expected: str, what: str) -> None:
+        deadline = time.monotonic() + 15
+        while (rule := rules_status(gone)["Degraded"])["readings"] != [expected]:
+            assert time.monotonic() < deadline, f"{what}: {rule}"
+            time.sleep(0.1)
+
+    try:
+        plain = group.start("leaving plain nodes", plain_nodes)
+        group.manager("--rules", str(rules), "--ros-args", "-r", "__ns:=/gone")
+        gone.wait_for_manager(15.0)
+        reading("lifecycle drivers/propeller = 'unconfigured'", "the first answer")
+        plain.signal(signal.SIGTERM)  # (a killed one stays on the graph for its lease)
+        plain.wait_exit()
+        reading("lifecycle drivers/propeller = no value", "no value once the node left")
+        assert rules_status(gone)["Degraded"]["value"] == "no data"
+        group.start("returning plain nodes", plain_nodes)
+        reading("lifecycle drivers/propeller = 'unconfigured'", "asked again on its return")
+    finally:
+        group.kill_all()
+        node.destroy_node()
