@@ -34,8 +34,10 @@ ASSUMED_DEFAULT_TIMEOUT = 10.0
 # A reply can be lost while the manager's reply writer has not yet matched a new client's
 # reader (a known Fast DDS discovery race, ros2/rmw_fastrtps#842). An asynchronous command
 # unanswered after RESEND_AFTER is sent again (at most ATTEMPTS in all), with the time
-# left as its timeout; a synchronous or atomic one is not (its answer may take until its
-# timeout, and an aborted atomic vote must not be started again behind its caller's back).
+# left as its timeout, if that leaves the manager time to answer before the client gives
+# up (else the client waits for the attempts sent); an answer to any attempt counts. A
+# synchronous or atomic one is not (its answer may take until its timeout, and an aborted
+# atomic vote must not be started again behind its caller's back).
 RESEND_AFTER = 2.0
 ATTEMPTS = 3
 # Discovery: how often to look for the manager's services, how long to wait for a probe.
@@ -101,15 +103,9 @@ class LayerClient:
         try:
             while True:
                 probes.append(self._query.call_async(QueryRegistry.Request()))
-                until = min(time.monotonic() + wait, deadline)
-                while not any(probe.done() for probe in probes):
-                    left = until - time.monotonic()
-                    if left <= 0:
-                        break
-                    rclpy.spin_once(self.node, executor=self._executor, timeout_sec=left)
-                if any(probe.done() for probe in probes):
+                if self._first_done(probes, min(time.monotonic() + wait, deadline)) is not None:
                     return
-                if time.monotonic() >= deadline:
+                if time.monotonic() >= deadline or not self.node.context.ok():
                     raise ManagerError(
                         "the Layer manager on "
                         f"{self.node.resolve_service_name(QUERY_SERVICE)} did not answer within "
@@ -120,6 +116,16 @@ class LayerClient:
             for probe in probes:
                 if not probe.done():
                     self._query.remove_pending_request(probe)
+
+    def _first_done(self, futures: list[Any], until: float) -> Any | None:
+        """Spin the node until one of `futures` is done (returned), or `until` (a
+        monotonic time) passes or ROS shuts down (None)."""
+        while True:
+            done = next((future for future in futures if future.done()), None)
+            left = until - time.monotonic()
+            if done is not None or left <= 0 or not self.node.context.ok():
+                return done
+            rclpy.spin_once(self.node, executor=self._executor, timeout_sec=left)
 
     @property
     def service_name(self) -> str:
@@ -208,32 +214,37 @@ class LayerClient:
         give_up = started + (timeout if timeout > 0 else ASSUMED_DEFAULT_TIMEOUT) + REPLY_MARGIN
         resend = not (synchronous or atomic)
         sent_timeout = timeout
-        for attempt in range(1, ATTEMPTS + 1):
-            future = self.request_async(
-                activate,
-                deactivate,
-                synchronous=synchronous,
-                timeout=sent_timeout,
-                reason=reason,
-                expect_nodes=expect_nodes,
-                expect_count=expect_count,
-                atomic=atomic,
-            )
-            last = not resend or attempt == ATTEMPTS
-            until = give_up if last else min(give_up, time.monotonic() + RESEND_AFTER)
-            rclpy.spin_until_future_complete(
-                self.node,
-                future,
-                executor=self._executor,
-                timeout_sec=max(0.0, until - time.monotonic()),
-            )
-            if future.done():
-                return result_from_response(future.result())
-            self._activate.remove_pending_request(future)
-            # A command sent again must end before this client gives up, as the first.
-            sent_timeout = give_up - time.monotonic() - REPLY_MARGIN
-            if last or sent_timeout <= 0:
-                break
+        attempts: list[Any] = []  # an answer to any of them will do
+        try:
+            for attempt in range(1, ATTEMPTS + 1):
+                attempts.append(
+                    self.request_async(
+                        activate,
+                        deactivate,
+                        synchronous=synchronous,
+                        timeout=sent_timeout,
+                        reason=reason,
+                        expect_nodes=expect_nodes,
+                        expect_count=expect_count,
+                        atomic=atomic,
+                    )
+                )
+                last = not resend or attempt == ATTEMPTS
+                until = give_up if last else min(give_up, time.monotonic() + RESEND_AFTER)
+                answered = self._first_done(attempts, until)
+                # A command sent again must end before this client gives up, as the first:
+                # where none would (a short timeout), those sent are waited for until then.
+                sent_timeout = give_up - time.monotonic() - REPLY_MARGIN
+                if answered is None and not last and sent_timeout <= 0:
+                    answered, last = self._first_done(attempts, give_up), True
+                if answered is not None:
+                    return result_from_response(answered.result())
+                if last or not self.node.context.ok():
+                    break
+        finally:
+            for future in attempts:
+                if not future.done():
+                    self._activate.remove_pending_request(future)
         raise ManagerError(
             f"the Layer manager did not answer within {time.monotonic() - started:.1f} s; "
             "whether the command was carried out is unknown (see `contextros status`)"
