@@ -75,3 +75,24 @@ def test_contextros_check_reports_a_bad_policy_with_its_place(tmp_path: Path) ->
     )
     assert checked.returncode != 0
     assert f"{layers}:3:37: error: drift policy 'sometimes'" in checked.stdout + checked.stderr
+
+
+def test_check_warns_when_an_infer_drift_can_match_no_other_layer() -> None:
+    from contextros.language import check_source
+
+    source = (
+        "layer Slow:\n    def f(): ...\nlayer Fast excludes Slow:\n    def f(): ...\n"
+        "parameter Fast: base max_speed = 3.0 on drift infer\n"
+        "parameter Fast: base mode = 'sport' on drift infer\n"
+        "parameter Slow: base max_speed = 0.3\n"
+    )
+    found = [(d.severity.value, d.line, d.col, d.message) for d in check_source(source, "t.layers")]
+    assert found == [
+        (
+            "warning",
+            6,
+            17,
+            "on drift infer: no other layer of this file binds parameter base mode, so no layer "
+            "can be inferred from its drift (it is only reported)",
+        )
+    ]

@@ -16,7 +16,7 @@ from pathlib import Path
 from types import MethodDescriptorType, WrapperDescriptorType
 from typing import TYPE_CHECKING
 
-from contextros.language.bindings import ParameterValue
+from contextros.language.bindings import LifecycleBinding, ParameterBinding, ParameterValue
 from contextros.language.diagnostics import (
     Diagnostic,
     DiagnosticSink,
@@ -741,6 +741,26 @@ class _Checker:
                         at.col,
                     )
             by_layer.setdefault(layer.name, (value, at))
+        self._nothing_to_infer(bound)
+
+    def _nothing_to_infer(
+        self, bound: dict[tuple[str, str], dict[str, tuple[ParameterValue, Position]]]
+    ) -> None:
+        """`on drift infer` on a binding whose node parameter (lifecycle node) no other layer
+        of the file binds: no layer can ever be inferred from its drift."""
+        policies: list[tuple[str, str, ParameterBinding | LifecycleBinding]] = [
+            ("parameter", f"{p.node} {p.name}", p) for p in self.file.parameters
+        ]
+        policies += [("lifecycle", c.node, c) for c in self.file.lifecycles]
+        for kind, key, binding in policies:
+            if binding.policy == "infer" and set(bound[(kind, key)]) == {binding.layer.name}:
+                what = f"parameter {key}" if kind == "parameter" else f"lifecycle node {key}"
+                self.sink.warning(
+                    f"on drift infer: no other layer of this file binds {what}, so no layer "
+                    "can be inferred from its drift (it is only reported)",
+                    binding.at.line,
+                    binding.at.col,
+                )
 
 
 def _same(a: ParameterValue, b: ParameterValue) -> bool:
