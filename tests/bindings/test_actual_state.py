@@ -179,3 +179,17 @@ def test_a_node_gone_from_the_graph_drifts_but_is_not_set_back() -> None:
     assert actual.restore_due(1.0) == [], "no one to set"
     read(actual, "/propeller", "", "unconfigured", 2.0)  # back, restarted
     assert len(actual.restore_due(2.0)) == 1
+
+
+def test_the_actual_state_and_inference_import_without_ros() -> None:
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys, contextros.bindings.actual, contextros.bindings.inference;"
+        "loaded = [m for m in sys.modules if m.split('.')[0] in "
+        "('rclpy', 'rcl_interfaces', 'lifecycle_msgs', 'contextros_interfaces') "
+        "or m.startswith('contextros.ros')];"
+        "assert not loaded, loaded"
+    )
+    subprocess.run([sys.executable, "-c", probe], check=True)
