@@ -216,14 +216,12 @@ class LayerManagerNode(Node):
         # `_on_manager_message`). Why this one stepped down, once it did.
         self.stepped_down = ""
         self._rivals_logged: set[str] = set()
-        for topic, qos in ((STATE_TOPIC, STATE_QOS), (HEARTBEAT_TOPIC, HEARTBEAT_QOS)):
-            self.create_subscription(
-                LayerStateMsg,
-                topic,
-                self._on_manager_message,
-                qos,
-                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
-            )
+        # Listened to while recovering, then only while the ROS graph shows another
+        # activate service (every tick asks, a graph query): otherwise they bring this
+        # manager its own states and heartbeats, a wake-up each, and each entity costs
+        # every wake-up (issue 26).
+        self._rival_subscriptions: list[Any] = []
+        self._listen_for_rivals(True)
         self._save_error = ""  # the state file's last write error, logged once
         self._status_subscription = self.create_subscription(
             ParticipantStatus,
@@ -353,6 +351,24 @@ class LayerManagerNode(Node):
             self._rivals_logged.add(other)
             self.log.error(f"{rival}; it steps down, this manager ({self.manager_id}) stays")
 
+    def _listen_for_rivals(self, listen: bool) -> None:
+        """Subscribe to the state and heartbeat topics while another manager may be live."""
+        if listen and not self._rival_subscriptions:
+            self._rival_subscriptions = [
+                self.create_subscription(
+                    LayerStateMsg,
+                    topic,
+                    self._on_manager_message,
+                    qos,
+                    event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False),
+                )
+                for topic, qos in ((STATE_TOPIC, STATE_QOS), (HEARTBEAT_TOPIC, HEARTBEAT_QOS))
+            ]
+        elif not listen and self._rival_subscriptions:
+            for subscription in self._rival_subscriptions:
+                self.destroy_subscription(subscription)
+            self._rival_subscriptions = []
+
     def _waiting_statuses(self, first: bytes) -> Iterator[bytes]:
         yield first
         handle = self._status_subscription.handle
@@ -372,7 +388,9 @@ class LayerManagerNode(Node):
                 f"the manager did not run for {stall:.1f} s: that time does not count as "
                 "the nodes' silence"
             )
-        if self.protocol.recovering and self.count_services(ACTIVATE_SERVICE) > 1:
+        servers = self.count_services(ACTIVATE_SERVICE)
+        self._listen_for_rivals(servers > 1 or self.protocol.recovering)
+        if self.protocol.recovering and servers > 1:
             # Another manager's service is in the graph (a graph query, microseconds):
             # no first state before its state or heartbeat is heard (`_on_manager_message`).
             self.protocol.prolong_recovery(now + 2 * self._tick_period)
