@@ -113,3 +113,30 @@ def test_a_cpp_node_declares_what_its_layer_implies(
     assert refused.returncode != 0
     assert "group 'camera' allows one active layer" in refused.stderr
     assert "CameraHigh implied by Survey" in refused.stderr
+
+
+def test_watch_shows_what_implies_what(system: RunningSystem, client: LayerClient) -> None:
+    settle(client)
+    group = ProcessGroup()
+    try:
+        watch = group.start("watch", ["-m", "contextros", "watch", "--count", "1", "--json"])
+        watch.wait_for(
+            lambda events: (
+                {e.get("node") for e in events if e["event"] == "node"} >= set(NODES)
+                and any(e["event"] == "current" for e in events)
+            ),
+            10,
+            "the current state and the three nodes",
+        )
+        result = client.request(["Mission"], synchronous=True, timeout=5)
+        assert result.success, result.message
+        assert watch.wait_exit(10) == 0
+        state = next(e for e in watch.events if e["event"] == "state")
+        assert state["epoch"] == result.epoch and state["active"] == HIERARCHY
+        assert state["implied_by"] == {
+            "Airborne": ["Mission"],
+            "CameraHigh": ["Airborne"],
+            "Propulsion": ["Airborne"],
+        }
+    finally:
+        group.kill_all()
