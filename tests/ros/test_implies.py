@@ -70,9 +70,9 @@ def test_activating_the_top_of_a_hierarchy_reaches_every_node_with_every_level(
         "Airborne (implied by Mission), Mission]" in text
     )
 
-    refused = contextros("deactivate", "Propulsion", "--sync")
-    assert refused.returncode != 0
-    assert "Propulsion is implied by Airborne, which stays active" in refused.stderr
+    refused = client.request([], ["Propulsion"], synchronous=True, timeout=5)
+    assert not refused.success
+    assert "Propulsion is implied by Airborne, which stays active" in refused.message
 
     done = contextros("deactivate", "Mission", "--sync", "--timeout", "10", "--json")
     assert done.returncode == 0, done.stderr
@@ -86,8 +86,8 @@ def test_a_layer_asked_for_on_its_own_stays_when_its_implier_leaves(
     system: RunningSystem, client: LayerClient
 ) -> None:
     settle(client)
-    assert contextros("activate", "Propulsion", "--sync").returncode == 0
-    assert contextros("activate", "Mission", "--sync").returncode == 0
+    for layer in ("Propulsion", "Mission"):
+        assert client.request([layer], synchronous=True, timeout=5).success
     done = contextros("deactivate", "Mission", "--sync", "--json")
     assert done.returncode == 0, done.stderr
     answer = json.loads(done.stdout)
