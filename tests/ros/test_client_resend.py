@@ -1,9 +1,11 @@
 """`LayerClient.request` against a manager that answers late (a stand-in in this process,
 as in test_client_probe.py): a short timeout is waited for until the client gives up (not
-cut short where no resend fits), and an answer to any attempt of the command counts."""
+cut short where no resend fits), and an answer to any attempt of the command counts.
+(The C++ client's: tests/ros/test_cpp_client.py, with the same stand-in.)"""
 
 from __future__ import annotations
 
+import contextlib
 import threading
 import time
 from collections.abc import Iterator
@@ -29,12 +31,13 @@ from contextros.ros.topics import (  # noqa: E402
 LATE = RESEND_AFTER + 0.5  # the stand-in's time to answer each command
 
 
-@pytest.fixture
+@contextlib.contextmanager
 def late_manager() -> Iterator[list[float]]:
     """A stand-in manager answering each Activate LATE after it arrives (its message says
-    which one: "answer 1", ...), each on a thread of its own; yields their arrival times."""
-    rclpy.init()
-    context: Context = rclpy.get_default_context()
+    which one: "answer 1", ...), each on a thread of its own, in a ROS context of its own;
+    yields their arrival times."""
+    context = Context()
+    rclpy.init(context=context)
     server = Node("late_manager_stand_in", context=context)
     arrived: list[float] = []
 
@@ -66,6 +69,17 @@ def late_manager() -> Iterator[list[float]]:
         executor.shutdown(timeout_sec=10.0)
         spinning.join(timeout=10.0)
         server.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def arrived() -> Iterator[list[float]]:
+    """The late stand-in, and rclpy's default context for the client under test."""
+    rclpy.init()
+    try:
+        with late_manager() as times:
+            yield times
+    finally:
         rclpy.try_shutdown()
 
 
@@ -76,7 +90,7 @@ def _client() -> LayerClient:
 
 
 def test_a_short_timeout_is_waited_for_until_the_client_gives_up(
-    late_manager: list[float],
+    arrived: list[float],
 ) -> None:
     """timeout=1: no resend fits (its own would end after the client gave up at 3 s), so
     the command sent is waited for; it was cut short at 2 s."""
@@ -85,10 +99,10 @@ def test_a_short_timeout_is_waited_for_until_the_client_gives_up(
     result = client.request(["Night"], timeout=1.0)
     assert result.message == "answer 1", result
     assert LATE <= time.monotonic() - started < 1.0 + REPLY_MARGIN
-    assert len(late_manager) == 1, "not sent again"
+    assert len(arrived) == 1, "not sent again"
 
 
-def test_a_late_answer_to_the_first_attempt_counts(late_manager: list[float]) -> None:
+def test_a_late_answer_to_the_first_attempt_counts(arrived: list[float]) -> None:
     """No timeout: sent again after RESEND_AFTER, and the first attempt's answer, coming
     after that, is taken (it was dropped, and the last one's waited for)."""
     client = _client()
@@ -97,4 +111,4 @@ def test_a_late_answer_to_the_first_attempt_counts(late_manager: list[float]) ->
     elapsed = time.monotonic() - started
     assert result.message == "answer 1", result
     assert LATE <= elapsed < RESEND_AFTER + LATE, elapsed
-    assert len(late_manager) == 2, "sent again once"
+    assert len(arrived) == 2, "sent again once"

@@ -1,7 +1,9 @@
 """The C++ activation client (cpp/ros/src/client.cpp) against the real Layer manager: it
 switches a Python and a C++ node, and answers as the Python client does (epoch,
 acknowledged, not acknowledged, the manager's reason) for asynchronous, synchronous and
-atomic commands, expectations, refusals, invalid commands and a missing manager.
+atomic commands, expectations, refusals, invalid commands and a missing manager; against a
+late stand-in manager, a short timeout waited for and a late first answer taken; Ctrl-C
+ending a command that waits for its answer.
 
 The client runs in cpp/ros/tests/client_process.cpp: a command per line on stdin, a JSON
 answer per line on stdout.
@@ -9,12 +11,15 @@ answer per line on stdout.
 
 from __future__ import annotations
 
+import signal
 import time
 from typing import Any
 
 from contextros.ros import LayerClient
+from contextros.ros.client import REPLY_MARGIN, RESEND_AFTER
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, start_system, wait_for_manager, wait_registry
+from tests.ros.test_client_resend import LATE, late_manager
 
 CPP_CLIENT = HERE.parent.parent / "build/cpp/ros/contextros_test_client"
 
@@ -174,3 +179,46 @@ def test_without_a_manager_the_cpp_client_says_so_within_its_timeout(
     assert unanswered["kind"] == "ManagerError", unanswered
     assert "whether the command was carried out is unknown" in unanswered["message"]
     assert 2.5 <= elapsed < 5.0, f"gives up 2 s after the timeout, not {elapsed:.1f} s"
+
+
+def test_against_a_late_manager_the_cpp_client_waits_and_takes_any_attempts_answer(
+    processes: ProcessGroup,
+) -> None:
+    """As the Python client (test_client_resend.py): timeout=1 leaves no time for a resend,
+    so the command sent is waited for until the client gives up (it gave up at 2 s); without
+    a timeout, the first attempt's answer, coming after the resend, is taken (it was
+    dropped, and the third attempt's waited for)."""
+    with late_manager() as arrived:
+        cxx_client = cpp_client(processes, "late_client")
+        assert ask(cxx_client, "wait 15")["event"] == "manager"
+        started = time.monotonic()
+        short = ask(cxx_client, "request on=Night timeout=1")
+        assert short["event"] == "answer" and short["message"] == "answer 1", short
+        assert LATE <= time.monotonic() - started < 1.0 + REPLY_MARGIN
+        assert len(arrived) == 1, "not sent again"
+
+        started = time.monotonic()
+        resent = ask(cxx_client, "request on=Night")
+        assert resent["event"] == "answer" and resent["message"] == "answer 2", resent
+        assert LATE <= time.monotonic() - started < RESEND_AFTER + LATE
+        assert len(arrived) == 3, "sent again once"
+
+
+def test_ctrl_c_ends_a_cpp_command_waiting_for_its_answer(processes: ProcessGroup) -> None:
+    """The program's SIGINT shuts the ROS context down (as rclcpp's handler does): a command
+    no manager answers ends within the client's 100 ms look at the context, with
+    ManagerError, not at its deadline (32 s here)."""
+    cxx_client = cpp_client(processes, "interrupted_client")
+    cxx_client.send("request on=Night sync timeout=30")
+    time.sleep(1.0)  # waiting for its answer
+    interrupted = time.monotonic()
+    cxx_client.signal(signal.SIGINT)
+    ended = cxx_client.wait_for(
+        lambda events: any(e["event"] == "shutdown" for e in events) and events, 5.0, "shutdown"
+    )
+    assert time.monotonic() - interrupted < 1.0
+    error = next(e for e in ended if e["event"] == "error")
+    assert error["kind"] == "ManagerError", error
+    assert error["message"].startswith("ROS was shut down before the Layer manager answered")
+    assert "whether the command was carried out is unknown" in error["message"]
+    assert cxx_client.wait_exit(5.0) == 0

@@ -5,6 +5,7 @@
 #include <pwd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <contextros_interfaces/srv/activate.hpp>
 #include <contextros_interfaces/srv/query_registry.hpp>
@@ -30,6 +31,9 @@ using contextros_interfaces::srv::QueryRegistry;
 // As the Python client (src/contextros/ros/client.py) and its validation
 // (src/contextros/protocol/validation.py).
 constexpr auto poll_period = std::chrono::milliseconds(10);
+// The longest wait for an answer between two looks at the ROS context: a shutdown (Ctrl-C)
+// ends a blocked call within it (rcl_wait does not wake on shutdown).
+constexpr auto shutdown_check_period = std::chrono::milliseconds(100);
 constexpr Seconds first_probe_wait{0.2};
 constexpr Seconds longest_probe_wait{1.6};
 constexpr double max_timeout = 3600.0;
@@ -95,6 +99,16 @@ void names_problems(const std::vector<std::string>& names, const std::string& fi
   }
 }
 
+// rcl failing while a command or a probe is under way: the client's documented error
+// (ManagerError: the outcome is unknown), with rcl's words.
+void check_command(rcl_ret_t ret, const char* what) {
+  try {
+    detail::check(ret, what);
+  } catch (const ParticipantError& error) {
+    throw ManagerError(error.what());
+  }
+}
+
 rmw_qos_profile_t service_qos() {
   // ACTIVATE_QOS / QUERY_QOS (src/contextros/ros/topics.py).
   return keep_last(1000);
@@ -125,7 +139,7 @@ class RclClient : detail::NonCopyable {
   template <class Request>
   std::int64_t send(const Request& request) {
     std::int64_t sequence = 0;
-    detail::check(rcl_send_request(&handle_, &request, &sequence), "cannot send a request");
+    check_command(rcl_send_request(&handle_, &request, &sequence), "cannot send a request");
     return sequence;
   }
 
@@ -149,16 +163,18 @@ class RclClient : detail::NonCopyable {
 // A wait set for one service client.
 class ClientWaitSet : detail::NonCopyable {
  public:
-  explicit ClientWaitSet(rcl_context_t* context) {
+  explicit ClientWaitSet(rcl_context_t* context) : context_(context) {
     detail::check(rcl_wait_set_init(&handle_, 0, 0, 0, 1, 0, 0, context,
                                     rcl_get_default_allocator()),
                   "cannot create a wait set");
   }
   ~ClientWaitSet() { detail::ignore_failure(rcl_wait_set_fini(&handle_)); }
 
-  // Waits until `client` has a response or `deadline` passes.
+  // Waits until `client` has a response, `deadline` passes or shutdown_check_period
+  // passed (the caller looks at the context again).
   void wait(rcl_client_t* client, Clock::time_point deadline) {
-    const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(deadline - Clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::nanoseconds>(
+        std::min(deadline - Clock::now(), Clock::duration(shutdown_check_period)));
     if (left.count() <= 0) {
       return;
     }
@@ -166,11 +182,16 @@ class ClientWaitSet : detail::NonCopyable {
     detail::ignore_failure(rcl_wait_set_add_client(&handle_, client, nullptr));
     const rcl_ret_t ret = rcl_wait(&handle_, left.count());
     if (ret != RCL_RET_OK && ret != RCL_RET_TIMEOUT) {
-      detail::fail("cannot wait for the Layer manager's answer");
+      if (!rcl_context_is_valid(context_)) {  // shut down meanwhile: the caller says so
+        rcl_reset_error();
+        return;
+      }
+      check_command(ret, "cannot wait for the Layer manager's answer");
     }
   }
 
  private:
+  rcl_context_t* context_;
   rcl_wait_set_t handle_ = rcl_get_zero_initialized_wait_set();
 };
 
@@ -236,13 +257,14 @@ struct LayerClient::Impl {
     return domain != nullptr && *domain != '\0' ? domain : "0";
   }
 
-  // The answer to the request numbered `sequence`, if it comes before `deadline` (answers
-  // to earlier, abandoned requests are dropped).
-  bool answer(std::int64_t sequence, Clock::time_point deadline, Activate::Response& response) {
+  // The answer to any of the requests numbered `sequences` (the attempts of one command),
+  // if it comes before `deadline` (answers to abandoned commands' requests are dropped).
+  bool answer(const std::vector<std::int64_t>& sequences, Clock::time_point deadline,
+              Activate::Response& response) {
     while (context_ok()) {
       std::int64_t answered = 0;
       while (activate.take(response, answered)) {
-        if (answered == sequence) {
+        if (std::find(sequences.begin(), sequences.end(), answered) != sequences.end()) {
           return true;
         }
       }
@@ -346,26 +368,37 @@ ActivationResult LayerClient::request(const std::vector<std::string>& activate,
   // Only an asynchronous command is sent again: a synchronous one's answer may take until
   // its timeout, and an aborted atomic vote must not be started again behind its caller.
   const bool resend = !(options.synchronous || options.atomic);
+  std::vector<std::int64_t> sent;  // the command's attempts: an answer to any will do
   for (int attempt = 1; attempt <= attempts; ++attempt) {
-    const std::int64_t sequence = impl_->activate.send(request);
-    const bool last = !resend || attempt == attempts;
+    sent.push_back(impl_->activate.send(request));
+    bool last = !resend || attempt == attempts;
     const auto until = last ? give_up : std::min(give_up, Clock::now() + resend_after);
     Activate::Response response;
-    if (impl_->answer(sequence, until, response)) {
+    bool answered = impl_->answer(sent, until, response);
+    // A command sent again must end before this client gives up, as the first: where none
+    // would (a short timeout), those sent are waited for until then.
+    const Seconds left = give_up - Clock::now() - reply_margin;
+    if (!answered && !last && left.count() <= 0) {
+      answered = impl_->answer(sent, give_up, response);
+      last = true;
+    }
+    if (answered) {
       return result_of(response);
     }
-    // A command sent again must end before this client gives up, as the first.
-    const Seconds left = give_up - Clock::now() - reply_margin;
-    if (last || left.count() <= 0 || !impl_->context_ok()) {
+    if (last || !impl_->context_ok()) {
       break;
     }
     request.timeout = left.count();
   }
   char elapsed[32];
   std::snprintf(elapsed, sizeof elapsed, "%.1f", Seconds(Clock::now() - started).count());
-  throw ManagerError(std::string("the Layer manager did not answer within ") + elapsed +
-                     " s; whether the command was carried out is unknown (see `contextros "
-                     "status`)");
+  const std::string unknown =
+      " s; whether the command was carried out is unknown (see `contextros status`)";
+  if (!impl_->context_ok()) {
+    throw ManagerError(std::string("ROS was shut down before the Layer manager answered, after ") +
+                       elapsed + unknown);
+  }
+  throw ManagerError(std::string("the Layer manager did not answer within ") + elapsed + unknown);
 }
 
 std::future<ActivationResult> LayerClient::request_async(std::vector<std::string> activate,

@@ -11,12 +11,20 @@
 //   Errors: {"event": "error", "kind": "ActivationFailed"|"ManagerError", "message": ..,
 //            "not_acknowledged": [..]}
 // Options: --name NAME (the node; default cpp_client), --requester TEXT.
+// SIGINT or SIGTERM shuts the ROS context down, as rclcpp's signal handler does: a command
+// waiting for its answer ends (ManagerError), then {"event": "shutdown"} and exit 0.
+#include <pthread.h>
+#include <rcl/error_handling.h>
+#include <rcl/rcl.h>
+#include <signal.h>
+
 #include <contextros/ros/client.hpp>
 #include <contextros/ros/rcl_node.hpp>
 #include <cstdio>
 #include <iostream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "json_lines.hpp"
@@ -120,6 +128,41 @@ ActivationResult run(contextros::ros::LayerClient& client, const Command& comman
   throw std::invalid_argument("unknown command '" + command.verb + "'");
 }
 
+// SIGINT and SIGTERM shut `context` down, from a thread of its own (rcl_shutdown is not
+// async-signal-safe); SIGUSR1 ends that thread. Block the signals first (`blocked`), before
+// rcl starts any thread.
+class ShutdownOnSignal {
+ public:
+  static sigset_t blocked() {
+    sigset_t signals;
+    sigemptyset(&signals);
+    sigaddset(&signals, SIGINT);
+    sigaddset(&signals, SIGTERM);
+    sigaddset(&signals, SIGUSR1);
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+    return signals;
+  }
+
+  ShutdownOnSignal(const sigset_t& signals, rcl_context_t& context)
+      : watcher_([signals, &context] {
+          int number = 0;
+          if (sigwait(&signals, &number) == 0 && number != SIGUSR1) {
+            if (rcl_shutdown(&context) != RCL_RET_OK) {
+              rcl_reset_error();
+            }
+          }
+        }) {}
+  ~ShutdownOnSignal() {
+    pthread_kill(watcher_.native_handle(), SIGUSR1);
+    watcher_.join();
+  }
+  ShutdownOnSignal(const ShutdownOnSignal&) = delete;
+  ShutdownOnSignal& operator=(const ShutdownOnSignal&) = delete;
+
+ private:
+  std::thread watcher_;
+};
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -133,7 +176,9 @@ int main(int argc, char** argv) {
       requester = argv[i + 1];
     }
   }
+  const sigset_t signals = ShutdownOnSignal::blocked();
   contextros::ros::RclContext context(0, nullptr);
+  const ShutdownOnSignal shutdown_on_signal(signals, context.get());
   contextros::ros::RclNode node(context, name);
   contextros::ros::LayerClient client(node.get(), requester);
   print("{\"event\": \"ready\", \"requester\": " + json_string(client.requester()) +
@@ -159,6 +204,10 @@ int main(int argc, char** argv) {
       print_error("ManagerError", error.what());
     } catch (const std::exception& error) {
       print_error("usage", error.what());
+    }
+    if (!context.ok()) {
+      print("{\"event\": \"shutdown\"}");
+      break;
     }
   }
   return 0;

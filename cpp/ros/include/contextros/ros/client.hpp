@@ -14,9 +14,12 @@
 // vote first. `timeout` is the command's deadline at the manager; the client gives up
 // `reply_margin` later (ManagerError: outcome unknown). An asynchronous command unanswered
 // after `resend_after` is sent again (at most `attempts` in all), never a synchronous or
-// atomic one. The blocking calls wait on a wait set of the client's own: call them from any
-// thread but not concurrently on one client (`request_async` runs them on a thread of its
-// own, one at a time); never from a callback that the answer would have to wait for.
+// atomic one; an answer to any attempt counts, and where no resend would end before the
+// client gives up, it waits for those sent. The blocking calls wait on a wait set of the
+// client's own: call them from any thread but not concurrently on one client
+// (`request_async` runs them on a thread of its own, one at a time); never from a callback
+// that the answer would have to wait for. A ROS shutdown (Ctrl-C through rclcpp's handler)
+// ends a waiting call within 100 ms with ManagerError, as does rcl failing during a command.
 #pragma once
 
 #include <chrono>
@@ -100,7 +103,8 @@ class LayerClient {
 
   // Deactivates `deactivate`, then activates `activate`, in one new state; the manager's
   // answer, success or not. ActivationFailed for an invalid command (nothing sent),
-  // ManagerError when no answer came `reply_margin` after the timeout.
+  // ManagerError when no answer came `reply_margin` after the timeout, ROS shut down or rcl
+  // failed (the outcome is then unknown).
   ActivationResult request(const std::vector<std::string>& activate,
                            const std::vector<std::string>& deactivate = {},
                            const CommandOptions& options = {});
