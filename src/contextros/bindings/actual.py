@@ -121,6 +121,7 @@ class ActualState:
         self.entries: tuple[tuple[Binding, BindingKey], ...] = tuple(
             (binding, key_of(binding, resolve)) for binding in bound
         )
+        self._keys = frozenset(key for _, key in self.entries)
         self.readings: dict[BindingKey, Reading] = {}
         self.applied: tuple[str, ...] = ()
         self._in_force: dict[BindingKey, int] = {}  # key -> index of the binding in force
@@ -132,8 +133,8 @@ class ActualState:
 
     # -- what the manager watches -------------------------------------------------------
 
-    def bound_keys(self) -> set[BindingKey]:
-        return {key for _, key in self.entries}
+    def bound_keys(self) -> frozenset[BindingKey]:
+        return self._keys
 
     def lifecycle_nodes(self) -> set[str]:
         return {key[0] for _, key in self.entries if not key[1]}

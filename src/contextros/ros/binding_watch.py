@@ -12,7 +12,6 @@ never beside a switch (`LayerManagerNode` schedules them when no command waits).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from typing import Any
 
 from lifecycle_msgs.msg import TransitionEvent
@@ -34,9 +33,6 @@ RETRY_READ = 2.0
 # How often the ROS graph is looked at for bound nodes that left or (re)appeared (seconds):
 # a restarted lifecycle node publishes no transition, it is read when it appears.
 GRAPH_LOOK = 1.0
-
-# (activate, deactivate, reason): how an inferred switch is asked of the manager.
-SubmitSwitch = Callable[[tuple[str, ...], tuple[str, ...], str], None]
 
 
 class WatchJob:
@@ -62,12 +58,12 @@ class WatchJob:
 
 
 class BindingWatch:
-    def __init__(
-        self, node: Node, driver: BindingDriver, log: NodeLog, submit: SubmitSwitch
-    ) -> None:
+    """The actual state of `driver`'s bindings on `node` (the manager): events in, reads
+    and restores out as `WatchJob`s, an `infer` drift's switch from `inference`."""
+
+    def __init__(self, node: Node, driver: BindingDriver, log: NodeLog) -> None:
         self.driver = driver
         self.log = log
-        self.submit = submit
         self.actual = ActualState(driver.bindings, driver.resolve)
         self._parameters = self.actual.parameters_of()
         # Keys to read, with when a change was first noticed and the value the event had.

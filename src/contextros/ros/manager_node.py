@@ -284,7 +284,7 @@ class LayerManagerNode(Node):
             self.bindings = BindingDriver(self, bindings, memory=memory)
             from contextros.ros.binding_watch import BindingWatch
 
-            self.watch = BindingWatch(self, self.bindings, self.log, self._submit_inferred)
+            self.watch = BindingWatch(self, self.bindings, self.log)
         self.rules: RuleRunner | None = None
         if rules is not None and rules.rules:
             from contextros.ros.rules import RuleRunner
