@@ -88,7 +88,7 @@ def test_a_file_cut_anywhere_reads_up_to_its_last_whole_chunk_and_repairs_whole(
         assert str(damages[0]).startswith(f"{cut}: byte ") and "truncated" in str(damages[0])
         if length < 8:
             continue  # not even the magic bytes: nothing to repair
-        report = repair_recording(cut, repaired)
+        report = repair_recording(cut, repaired, replace=True)
         assert report.messages == len(values) and report.damage is not None
         # The upstream reader reads the repaired copy whole, through its summary too.
         with repaired.open("rb") as stream:

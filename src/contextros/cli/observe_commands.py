@@ -70,6 +70,9 @@ def register_offline(commands: Any) -> None:
         metavar="OUT.mcap",
         help="where to write the repaired copy (default: IN.repaired.mcap beside it)",
     )
+    repair.add_argument(
+        "--force", action="store_true", help="replace OUT.mcap if it exists (refused otherwise)"
+    )
     repair.set_defaults(run=run_repair)
 
 
@@ -489,7 +492,7 @@ def run_repair(args: argparse.Namespace) -> int:
     source: Path = args.recording
     output: Path = args.output or source.with_name(f"{source.stem}.repaired.mcap")
     try:
-        repair = repair_recording(source, output)
+        repair = repair_recording(source, output, replace=args.force)
     except RecordingError as error:
         print(f"contextros repair: {error}", file=sys.stderr)
         return USAGE

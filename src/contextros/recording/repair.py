@@ -1,16 +1,18 @@
-"""Repairing a recording whose writer was killed: every whole record copied into a new,
-complete MCAP file (summary, indexes, footer), as `ros2 bag reindex` restores a bag's
-metadata and the mcap CLI's `recover` does.
+"""Repairing a recording whose writer was killed: every whole record up to where the file
+stops being readable copied into a new, complete MCAP file (summary, indexes, footer), as
+`ros2 bag reindex` restores a bag's metadata and the mcap CLI's `recover` does. The copy
+stops at the first damaged record: what follows it (whole chunks too) is not copied.
 
 Messages are copied as stored (their encoded bytes), whatever their encoding, so nothing
 needs decoding; schemas and channels are renumbered in the order they come. The new file
-is written beside the target and renamed into place once whole: an interrupted repair
-leaves no half file.
+is written beside the target and put into place once whole: an interrupted repair leaves
+no half file, and an existing target is replaced only when asked to.
 """
 
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,7 +24,8 @@ from contextros.recording.writer import compression
 
 @dataclass
 class Repair:
-    """What a repair copied, and where the input stopped being readable (None: nowhere)."""
+    """What a repair copied, and where the input stopped being readable (None: nowhere;
+    its `messages`: those copied before it, all of them)."""
 
     messages: int = 0
     topics: dict[str, int] = field(default_factory=dict)
@@ -32,10 +35,13 @@ class Repair:
     complete: bool = False  # the input had its summary: it needed no repair
 
 
-def repair_recording(source: str | os.PathLike[str], target: str | os.PathLike[str]) -> Repair:
-    """Copy every whole record of `source` into a complete MCAP file at `target`.
-    RecordingError when `source` cannot be read at all (not MCAP, cannot be opened) or
-    `target` cannot be written."""
+def repair_recording(
+    source: str | os.PathLike[str], target: str | os.PathLike[str], *, replace: bool = False
+) -> Repair:
+    """Copy every whole record of `source`, up to the first damaged one, into a complete
+    MCAP file at `target` (an existing one only if `replace`). RecordingError when `source`
+    cannot be read at all (not MCAP, cannot be opened) or `target` exists or cannot be
+    written."""
     from mcap.records import (
         Attachment,
         Channel,
@@ -50,6 +56,8 @@ def repair_recording(source: str | os.PathLike[str], target: str | os.PathLike[s
     name, output = os.fspath(source), Path(target)
     if output.exists() and output.resolve() == Path(name).resolve():
         raise RecordingError(f"{name}: the repaired copy must go to another file")
+    if output.exists() and not replace:
+        raise RecordingError(f"{output} exists already: not replaced (--force replaces it)")
     partial = output.with_name(f".{output.name}.partial")
     report = Repair()
     schemas: dict[int, int] = {}  # the input's schema id -> the output's
@@ -67,7 +75,7 @@ def repair_recording(source: str | os.PathLike[str], target: str | os.PathLike[s
                 except RecordingError as error:
                     if error.damage is None or error.damage.offset == 0:
                         raise  # not MCAP at all: nothing to copy
-                    report.damage = error.damage
+                    report.damage = dataclasses.replace(error.damage, messages=report.messages)
                     break
                 if writer is None:
                     profile = record.profile if isinstance(record, Header) else ""
@@ -111,7 +119,10 @@ def repair_recording(source: str | os.PathLike[str], target: str | os.PathLike[s
                 writer = Writer(out, compression=compression())
                 writer.start(profile="", library="contextros repair")
             writer.finish()
-        os.replace(partial, output)
+        if replace:
+            os.replace(partial, output)
+        else:
+            os.link(partial, output)  # fails if one appeared meanwhile: never replaced
     except OSError as error:
         raise RecordingError(f"{output}: cannot write the repaired copy: {error}") from None
     finally:
