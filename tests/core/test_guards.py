@@ -412,3 +412,37 @@ def test_a_guard_writing_its_parameters_leaves_the_arguments_alone(
         assert {area: writers.test(area) for area in calls} == calls
     finally:
         set_active([])
+
+
+def test_a_head_writing_its_parameters_in_the_dispatchers_frame_changes_no_other_call() -> None:
+    """The scoped and per-receiver dispatchers run the head they expect in their own frame
+    (composition's expected heads): a head assigning or deleting its parameters there
+    changes only its own call, and a call finding another head passes its own arguments."""
+
+    class Robot:
+        @layered
+        def speed(self, n: int) -> tuple[str, int]:
+            return ("base", n)
+
+        @speed.partial(Big)
+        def speed(self, n: int) -> tuple[str, int]:
+            n = n * 100
+            return ("big", proceed(self, n)[1])
+
+        @speed.partial(Wet)
+        def speed(self, n: int) -> tuple[str, int]:
+            del n
+            return ("wet", 0)
+
+    robot, other = Robot(), Robot()
+    with activated(Big):
+        assert [robot.speed(n) for n in (1, 2, 1)] == [("big", 100), ("big", 200), ("big", 100)]
+        with activated(Wet):
+            assert robot.speed(3) == ("wet", 0)
+        assert robot.speed(4) == ("big", 400)
+    activate_for(robot, Big)
+    assert [robot.speed(1), other.speed(1), robot.speed(2)] == [
+        ("big", 100),
+        ("base", 1),
+        ("big", 200),
+    ]
