@@ -20,7 +20,9 @@ def _contextros(*arguments: str) -> subprocess.CompletedProcess[str]:
 def test_the_manager_refuses_a_directory_of_layer_files_check_searches(tmp_path: Path) -> None:
     folder = tmp_path / "robot"
     folder.mkdir()
-    (folder / "robot.layers").write_text("rule Low: Night while battery.percent < 20\n", encoding="utf-8")
+    (folder / "robot.layers").write_text(
+        "rule Low: Night while battery.percent < 20\n", encoding="utf-8"
+    )
     assert _contextros("check", str(folder)).returncode == 0
     manager = _contextros("manager", "--layers", str(folder))
     assert manager.returncode == 2, manager.stderr

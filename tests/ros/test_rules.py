@@ -459,7 +459,8 @@ def test_a_layer_file_that_cannot_be_read_is_named_with_no_empty_quote_nor_caret
     directory.mkdir()
     binary.write_bytes(b"\xff\xfe")
     manager = refused_manager(missing, directory, binary)
-    for path in (missing, directory, binary):
+    for path in (missing, binary):
         assert f"{path}:1:1: error: cannot read the layer file: " in manager.stderr
+    assert f"{directory}: error: a directory, not a layer file" in manager.stderr
     lines = manager.stderr.splitlines()
     assert not [line for line in lines if not line.strip() or line.strip() == "^"], lines
