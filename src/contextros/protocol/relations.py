@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from functools import cached_property
 
 
 @dataclass(frozen=True)
@@ -37,8 +38,9 @@ class LayerDeclaration:
             implies=self.implies | other.implies,
         )
 
-    @property
+    @cached_property
     def groups(self) -> frozenset[str]:
+        # Asked on every command for every layer: split once (a frozen value's cache).
         return frozenset(g for g in self.group.split(",") if g)
 
 
@@ -102,6 +104,9 @@ def implied_layers(name: str, declarations: Mapping[str, LayerDeclaration]) -> t
     """What `name` implies, transitively, in activation order: each implied layer before the
     layer implying it, depth first, by name (`name` itself not included, cycles cut).
     Iterative: a chain of any length (declarations come from the network) is no recursion."""
+    declaration = declarations.get(name)
+    if declaration is None or not declaration.implies:
+        return ()  # most layers imply nothing: the common case costs one look-up
     found: list[str] = []
     seen = {name}
     # Each entry: a layer and the layers it implies still to visit (reversed: pop the next).
@@ -164,6 +169,8 @@ def implication_problems(name: str, declarations: Mapping[str, LayerDeclaration]
     (at most `MAX_PROBLEMS`), each said of the innermost layer implying both (`Flight implies
     CameraHigh and CameraLow, ...` when Mission implies Flight)."""
     implied = implied_layers(name, declarations)
+    if not implied:
+        return []
     members = (name, *implied)
     cycle = _cycle_members(members, declarations)
     if cycle:
@@ -291,6 +298,9 @@ def switched(
                 layers.append(member)
         if name not in asked:
             asked.append(name)
+    asked_set = set(asked)
+    if all(name in asked_set and not _implies_anything(name, declarations) for name in layers):
+        return Switched(tuple(layers), tuple(layers))  # nothing implied: the usual case
     position = {name: index for index, name in enumerate(layers)}
     asked.sort(key=lambda name: position.get(name, len(position)))
     wanted = with_implied(asked, declarations)
@@ -298,6 +308,11 @@ def switched(
     kept = [name for name in layers if name in wanted_set]
     kept += [name for name in wanted if name not in position]
     return Switched(tuple(kept), tuple(asked))
+
+
+def _implies_anything(name: str, declarations: Mapping[str, LayerDeclaration]) -> bool:
+    declaration = declarations.get(name)
+    return declaration is not None and bool(declaration.implies)
 
 
 def explicit_roots(

@@ -154,9 +154,15 @@ class CommandQueue(ManagerBase):
                 f"(known layers: {known}); nothing changed"
             )
             return message, True
+        # The activated layers that imply others (most imply nothing: one look-up each).
+        implying = [
+            name
+            for name in dict.fromkeys(command.activate)
+            if declarations[name].implies  # (each is known: checked above)
+        ]
         implied_unknown = {
             implied: name
-            for name in command.activate
+            for name in implying
             for implied in implied_layers(name, declarations)
             if implied not in declarations
         }
@@ -168,9 +174,7 @@ class CommandQueue(ManagerBase):
         if rivals:
             return f"relation violated: {rivals}; activate only one of them; nothing changed", False
         contradictions = [
-            problem
-            for name in dict.fromkeys(command.activate)
-            for problem in implication_problems(name, declarations)
+            problem for name in implying for problem in implication_problems(name, declarations)
         ]
         if contradictions:
             return (
