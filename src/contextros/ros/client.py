@@ -119,13 +119,20 @@ class LayerClient:
 
     def _first_done(self, futures: list[Any], until: float) -> Any | None:
         """Spin the node until one of `futures` is done (returned), or `until` (a
-        monotonic time) passes or ROS shuts down (None)."""
-        while True:
-            done = next((future for future in futures if future.done()), None)
-            left = until - time.monotonic()
-            if done is not None or left <= 0 or not self.node.context.ok():
-                return done
-            rclpy.spin_once(self.node, executor=self._executor, timeout_sec=left)
+        monotonic time) passes or ROS shuts down (None). As rclpy's
+        `spin_until_future_complete`, for any of several futures: the node is in the
+        executor for the whole wait."""
+        executor = self._executor or rclpy.get_global_executor()
+        executor.add_node(self.node)
+        try:
+            while True:
+                done = next((future for future in futures if future.done()), None)
+                left = until - time.monotonic()
+                if done is not None or left <= 0 or not self.node.context.ok():
+                    return done
+                executor.spin_once(timeout_sec=left)
+        finally:
+            executor.remove_node(self.node)
 
     @property
     def service_name(self) -> str:
