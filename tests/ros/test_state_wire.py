@@ -25,6 +25,7 @@ STATES = [
         reason="rule 'dark' at rules/robot.rules:3:1",
         manager_id="4711-0b5e",
         stamp=1_795_757_232.143290532,
+        status_period=12.5,
     ),
 ]
 
@@ -44,6 +45,7 @@ def test_a_state_reads_as_rclpy_reads_it(state: LayerState) -> None:
     ours, theirs = StateDecoder().decode(data), _by_rclpy(data)
     assert ours == theirs == state
     assert (ours.stamp, ours.manager_id) == (theirs.stamp, theirs.manager_id)
+    assert ours.status_period == theirs.status_period == state.status_period
 
 
 def test_the_same_bytes_are_decoded_once_and_the_memory_is_bounded() -> None:
@@ -119,4 +121,5 @@ def test_the_decoder_knows_every_field_of_the_message() -> None:
         "requester": "string",
         "reason": "string",
         "manager_id": "string",
+        "status_period": "float",
     }

@@ -107,6 +107,14 @@ def register(commands: Any) -> None:
         help="drop a participant silent for this long (default 3 s: 12 heartbeats)",
     )
     manager.add_argument(
+        "--status-rate",
+        type=Count(least=1),
+        default=1000,
+        metavar="N",
+        help="statuses per second asked of the participants at most: beyond N/4 of them their "
+        "heartbeat slows down and the liveness timeout grows with it (default 1000)",
+    )
+    manager.add_argument(
         "--default-timeout",
         type=Seconds(positive=True, most=MAX_TIMEOUT),
         default=5.0,
@@ -264,6 +272,7 @@ def run_manager(args: argparse.Namespace) -> int:
 
     settings = ManagerSettings(
         liveness_timeout=args.liveness_timeout,
+        status_rate=args.status_rate,
         default_timeout=args.default_timeout,
         recovery_window=args.recovery_window,
         unknown_layer_grace=args.unknown_layer_grace,

@@ -75,6 +75,10 @@ from contextros.ros.topics import (
 
 # Statuses handled per executor wake-up at most (the service and the timer get their turn).
 STATUS_BATCH = 256
+# While a synchronous activation waits for more acknowledgements, the manager pauses this
+# long after handling statuses: the ones arriving meanwhile are taken in one wake-up, not
+# one each (a wake-up costs more than a status; issue 26).
+STATUS_LINGER = 0.0005
 # After a reconcile failed: its first retry, doubling up to the maximum (seconds).
 RECONCILE_RETRY = 1.0
 RECONCILE_RETRY_MAX = 30.0
@@ -308,6 +312,8 @@ class LayerManagerNode(Node):
         self._run(actions)
         if self._commands and not self._driving:  # an atomic vote or a held layer may be over
             self._next_command()
+        if self.protocol.awaiting_acknowledgements:
+            time.sleep(STATUS_LINGER)
 
     def _on_manager_message(self, msg: Any) -> None:
         """A state or heartbeat of another live manager in this namespace: the two would

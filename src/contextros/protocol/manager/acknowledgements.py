@@ -18,6 +18,11 @@ from contextros.protocol.validation import listing
 class Acknowledgements(ManagerBase):
     """The pending synchronous activations (`_pending`)."""
 
+    @property
+    def awaiting_acknowledgements(self) -> bool:
+        """A synchronous activation waits for acknowledgements still to come."""
+        return any(pending.waiting for pending in self._pending)
+
     def _settle_pending(
         self, now: float, examine: Iterable[Key] | None = None
     ) -> list[ManagerAction]:

@@ -6,7 +6,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from contextros.protocol.events import ActivationCommand, ParticipantReport
-from contextros.protocol.state import LayerState
+from contextros.protocol.state import KnownParticipant, LayerState
 
 # A participant is one process under one incarnation; a node name may (wrongly) be used
 # by two live processes at once, so the registry is keyed by both.
@@ -19,6 +19,14 @@ class ParticipantRecord:
     last_heard: float
     # Known from the state file, not heard since this manager started.
     presumed: bool = False
+    # What the state file keeps of it (`known`), made once per record.
+    _known: KnownParticipant | None = field(default=None, repr=False, compare=False)
+
+    def known(self) -> KnownParticipant:
+        if self._known is None:
+            report = self.report
+            self._known = KnownParticipant(report.node, report.incarnation, report.hosted)
+        return self._known
 
 
 @dataclass
