@@ -62,7 +62,9 @@ MODES = (
     FLOOR,
 )
 PER_NODE = ", one participant per node"
-LEAN = ", lean spin"  # the workers spin with WaitLoop: spin_nodes(nodes, lean=True)
+# The workers spin with WaitLoop (spin_nodes(nodes, lean=True), the default since issue 26);
+# the other series with rclpy's executor (lean=False, as rclpy.spin(node) spins).
+LEAN = ", lean spin"
 SERIES = (
     "asynchronous",
     "synchronous",
@@ -102,7 +104,7 @@ WHY_MISSED = {
         " is the executor's own, in a py-spy profile of issue 16), while the manager's part"
         " per participant is under 0.1 ms (section manager_cost). The time is the"
         " participants' processes waiting for a core. Spun by `WaitLoop` (the lean-spin"
-        " series, `spin_nodes(nodes, lean=True)`) the executor's share goes (23-31 ms"
+        " series, `spin_nodes`' default since issue 26) the executor's share goes (23-31 ms"
         " instead of 36-41 ms at N=64 in issue 16's fourth session); what is left, in a"
         " py-spy profile of those workers, is half waiting on each process's wait set (8"
         " nodes with their parameter services and QoS event handlers, about 100 entities)"
@@ -138,7 +140,8 @@ def worker(names: list[str], echo: bool, per_node: bool, lean: bool = False) -> 
     """Host context nodes (and the floor's echo) until interrupted, then print apply times.
 
     They share one participant (the default), or with `per_node` each has its own; `lean`:
-    spun by `WaitLoop` (`spin_nodes(..., lean=True)`) instead of rclpy's executor.
+    spun by `WaitLoop` (`spin_nodes(..., lean=True)`) instead of rclpy's executor (else
+    `lean=False`: the series stay comparable with the runs before WaitLoop was the default).
     """
     import rclpy
     from rcl_interfaces.msg import SetParametersResult

@@ -1,16 +1,20 @@
 """The participants' own cost per synchronous activation: rclpy's executor against `WaitLoop`
-(`spin_nodes(nodes, lean=True)`), one participant per node (issue 16).
+(`spin_nodes`' default since issue 26), one participant per node (issues 16 and 26).
 
 Set-up as in section manager_cost: the manager, N context nodes with a participant each in
-8 worker processes, and a caller sending back-to-back synchronous activations. Two such
-systems run in two ROS domains, one whose workers spin with rclpy's
-`SingleThreadedExecutor` (the default) and one whose workers spin lean, with the rounds of
-the two interleaved (blocks of 10), so both see the same machine; while one system is
-measured, every process of the other is stopped (SIGSTOP; the manager's liveness timeout
-is longer than a block, and all of a system stops at once). Measured: the manager's
-`elapsed`, and the CPU time (user + system, from /proc) of all worker processes per
-activation, less their idle rate (heartbeats) measured just before each block.
-"""
+8 worker processes, and a caller sending back-to-back synchronous activations. One such
+system per way of spinning (the workers' `spin_nodes(nodes, lean=False)`: rclpy's
+`SingleThreadedExecutor`, the way `rclpy.spin(node)` spins; `lean=True`: `WaitLoop`), each
+in its own ROS domain, and with `CONTEXTROS_BEFORE=<a source tree>` the same two on that
+tree's code (benchmarks/code_before.py). Their rounds are interleaved (blocks of 10), so
+all see the same machine; while one system is measured, every process of the others is
+stopped (SIGSTOP; the manager's liveness timeout is longer than a block, and all of a
+system stops at once). Measured: the manager's `elapsed`, and the CPU time (user + system,
+from /proc) of all worker processes per activation, less their idle rate (heartbeats)
+measured just before each block.
+
+`--profile PREFIX` first records a worker of each spin with py-spy (native frames too)
+during 400 activations of that system alone: PREFIX-<spin>-<N>.txt, collapsed stacks."""
 
 from __future__ import annotations
 

@@ -12,11 +12,11 @@ manager's node has (subscriptions, services, timers, clients, guard conditions a
 waitables such as QoS event handlers), single-threaded, in a fixed order per wake-up
 (timers, subscriptions, guard conditions, clients, services, waitables). It refuses
 (UnsupportedEntityError, naming the node and the entity) coroutine callbacks and waitables
-other than QoS event handlers (actions): it would not run them. Context nodes whose
-callbacks are plain functions can spin with it too (`spin_nodes(nodes, lean=True)`):
-with one participant per node, 64 nodes in 8 processes acknowledged a synchronous
-activation in 23 ms instead of 41 ms (docs/benchmarks.md). A callback that reaches for
-`node.executor` finds none under it.
+other than QoS event handlers (actions): it would not run them. `spin_nodes` spins context
+nodes (any nodes) with it by default, and hands them to rclpy's executor once a node has
+what it refuses: with one participant per node, 64 nodes in 8 processes used about half
+the CPU per synchronous activation (docs/benchmarks.md, "The participants' CPU"). A
+callback that reaches for `node.executor` finds none under it.
 
 Why not `rclpy.experimental.EventsExecutor` (tried, ros-rclpy 9.1.2 wheels): its `spin`
 refuses the manager's node at once ("Guard conditions not supported": the manager wakes on
