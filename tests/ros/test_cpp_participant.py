@@ -186,6 +186,26 @@ def test_a_cpp_node_votes_in_an_atomic_activation(
     assert cpp.wait_applied(committed.epoch)["mode"] == "vacuum+base"
 
 
+def test_a_cpp_node_stopped_during_its_veto_waits_for_it_before_exiting(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """A veto is user code on a worker thread: a node stopped while it thinks lets it answer
+    before the process exits (not run on during static destruction)."""
+    cpp = processes.cpp_participant("stopping_cxx", "--veto-sleep", "1.5")
+    ready(cpp)
+    start_system(processes, client, ["stopping_py"])
+    wait_registry(client, lambda r: len(r.participants) == 2, what="both participants")
+    asking = threading.Thread(
+        target=lambda: client.request(["Night"], atomic=True, timeout=5), daemon=True
+    )
+    asking.start()
+    cpp.wait_for(lambda events: any(e["event"] == "veto-called" for e in events), 10, "a veto")
+    cpp.send("quit")
+    assert cpp.wait_exit(10) == 0, cpp.output()
+    assert any(e["event"] == "veto-answered" for e in cpp.events), cpp.output()
+    asking.join(10)
+
+
 def test_a_cpp_nodes_slow_veto_is_asked_once_and_the_node_stays_live(
     client: LayerClient, processes: ProcessGroup
 ) -> None:

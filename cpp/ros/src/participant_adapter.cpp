@@ -246,10 +246,60 @@ void Participant::Impl::take_proposals() {
       continue;  // its vetoes are still thinking
     }
     asking = std::move(key);
-    // The worker holds the inbox, not the participant: it may outlive it.
-    std::thread([box = inbox, proposal, to_ask = std::move(to_ask)] {
+    // The job holds the inbox, not the participant.
+    veto_worker.ask([box = inbox, proposal, to_ask = std::move(to_ask)] {
       box->post_answer(proposal, ask_vetoes(to_ask, proposal));
-    }).detach();
+    });
+  }
+}
+
+VetoWorker::~VetoWorker() {
+  std::unique_lock<std::mutex> lock(shared_->mutex);
+  shared_->stopping = true;
+  shared_->next.reset();
+  shared_->changed.notify_all();
+  if (!thread_.joinable()) return;
+  // Destroyed by a veto (on the worker itself), it cannot wait for it.
+  const bool finished = thread_.get_id() != std::this_thread::get_id() &&
+                        shared_->changed.wait_for(lock, patience_,
+                                                  [this] { return !shared_->busy; });
+  lock.unlock();
+  if (finished) {
+    thread_.join();
+    return;
+  }
+  if (thread_.get_id() != std::this_thread::get_id()) {
+    RCUTILS_LOG_WARN_NAMED("contextros",
+                           "a veto still runs %.1f s after its participant was destroyed: "
+                           "left to finish on its own",
+                           std::chrono::duration<double>(patience_).count());
+  }
+  thread_.detach();
+}
+
+void VetoWorker::ask(Job job) {
+  std::lock_guard<std::mutex> lock(shared_->mutex);
+  if (shared_->stopping) return;
+  shared_->next = std::move(job);
+  if (!thread_.joinable()) {
+    thread_ = std::thread(run, shared_);
+  }
+  shared_->changed.notify_all();
+}
+
+void VetoWorker::run(const std::shared_ptr<Shared>& shared) {
+  std::unique_lock<std::mutex> lock(shared->mutex);
+  while (true) {
+    shared->changed.wait(lock, [&] { return shared->stopping || shared->next.has_value(); });
+    if (shared->stopping) return;
+    Job job = std::move(*shared->next);
+    shared->next.reset();
+    shared->busy = true;
+    lock.unlock();
+    job();  // ask_vetoes catches what a veto throws
+    lock.lock();
+    shared->busy = false;
+    shared->changed.notify_all();
   }
 }
 

@@ -6,6 +6,8 @@
 #include <rcl/rcl.h>
 
 #include <atomic>
+#include <chrono>
+#include <condition_variable>
 #include <contextros/activation.hpp>
 #include <functional>
 #include <memory>
@@ -61,6 +63,35 @@ class Inbox {
   RclGuardCondition* wake_;  // not owned; null once the participant is gone
   std::vector<Settled> settled_;
   std::vector<Answer> answers_;
+};
+
+// Runs the vetoes off the participant's thread, one proposal at a time, so heartbeats go
+// on meanwhile. A newer proposal replaces one still waiting its turn. Destroyed, it waits
+// for a veto still thinking (up to `patience`), so that no user code outlives the
+// participant; past that, the thread is left to finish on its own and said so.
+class VetoWorker {
+ public:
+  using Job = std::function<void()>;
+  explicit VetoWorker(std::chrono::milliseconds patience)
+      : patience_(patience), shared_(std::make_shared<Shared>()) {}
+  ~VetoWorker();
+  VetoWorker(const VetoWorker&) = delete;
+  VetoWorker& operator=(const VetoWorker&) = delete;
+  void ask(Job job);
+
+ private:
+  // What the thread uses: shared, so that a thread left to finish never reaches freed memory.
+  struct Shared {
+    std::mutex mutex;
+    std::condition_variable changed;
+    std::optional<Job> next;
+    bool busy = false;
+    bool stopping = false;
+  };
+  static void run(const std::shared_ptr<Shared>& shared);
+  std::chrono::milliseconds patience_;
+  std::shared_ptr<Shared> shared_;
+  std::thread thread_;  // started by the first job
 };
 
 struct Participant::Impl {
@@ -141,6 +172,8 @@ struct Participant::Impl {
   std::optional<Clock::time_point> last_rejection_logged;
   std::atomic<bool> stopping{false};
   std::thread thread;
+  // Last: destroyed first, while everything a veto's answer reaches is still there.
+  VetoWorker veto_worker{std::chrono::seconds(5)};
 };
 
 // The declarations of `names` as defined in this process (by default every defined layer).

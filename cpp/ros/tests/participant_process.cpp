@@ -209,6 +209,7 @@ int main(int argc, char** argv) {
     contextros::ros::ContextNode::add_veto([seconds](const contextros::ros::LayerState& proposal) {
       emit("veto-called", "\"epoch\": " + std::to_string(proposal.epoch));
       std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
+      emit("veto-answered", "\"epoch\": " + std::to_string(proposal.epoch));
       return std::string();
     });
   }

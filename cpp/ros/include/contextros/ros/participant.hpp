@@ -46,8 +46,10 @@ using StateListener = std::function<void(const LayerState&)>;
 // configuration; once the manager is heard again, the participant re-applies the state it
 // applied last (if the runtime's layers differ from it) or the manager's newer state.
 using ManagerListener = std::function<void(bool lost)>;
-// Asked about an atomic activation's proposed state, on the participant's thread: return why
-// this process cannot apply it ("" : it can). Besides, the participant votes no while a
+// Asked about an atomic activation's proposed state, once per proposal, on a worker thread
+// of the participant (one proposal at a time; heartbeats go on meanwhile): return why this
+// process cannot apply it ("" : it can). Destroying the participant waits up to 5 s for a
+// veto still running. Besides, the participant votes no while a
 // critical section is open and when the proposal breaks a relation it declares.
 using Veto = std::function<std::string(const LayerState&)>;
 
