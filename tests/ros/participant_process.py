@@ -126,6 +126,7 @@ def main() -> None:
         def veto(proposal: LayerState) -> str | None:
             emit("veto-called", epoch=proposal.epoch, active=list(proposal.active))
             time.sleep(args.veto_sleep)
+            emit("veto-answered", epoch=proposal.epoch)
             return args.veto
 
         node.context_participant.add_veto(veto)

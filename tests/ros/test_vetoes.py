@@ -4,7 +4,9 @@ node's executor, and every node that says no is named."""
 from __future__ import annotations
 
 import re
+import signal
 import textwrap
+import threading
 from pathlib import Path
 
 from contextros.ros import LayerClient
@@ -38,6 +40,25 @@ def test_a_slow_veto_is_asked_once_and_its_node_stays_live(
     s1 = next(c for c in processes.children if c.name == "s1")
     calls = [e for e in s1.events if e["event"] == "veto-called" and e["epoch"] == result.epoch]
     assert len(calls) == 1, f"the veto was asked {len(calls)} times about one proposal"
+
+
+def test_a_node_stopped_during_its_veto_waits_for_it_before_exiting(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """A veto is user code on a thread of its own: a node stopped (SIGTERM) while it thinks
+    lets it answer before the interpreter goes (as the C++ participant does)."""
+    start(processes, client, {"t1": ["--veto-sleep", "1.5"], "t2": []})
+    t1 = next(c for c in processes.children if c.name == "t1")
+    asking = threading.Thread(
+        target=lambda: client.request(["Night"], atomic=True, timeout=5), daemon=True
+    )
+    asking.start()
+    t1.wait_for(lambda events: any(e["event"] == "veto-called" for e in events), 10, "a veto")
+    t1.signal(signal.SIGTERM)
+    t1.wait_exit(10)
+    assert any(e["event"] == "veto-answered" for e in t1.events), t1.output()
+    assert "Traceback" not in t1.output(), t1.output()
+    asking.join(10)
 
 
 def test_every_node_that_says_no_is_named(client: LayerClient, processes: ProcessGroup) -> None:

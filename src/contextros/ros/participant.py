@@ -69,6 +69,8 @@ ManagerListener = Callable[[bool], object]
 # ("" or None: it can). Called once per proposal, in a thread of its own (the node's
 # executor, heartbeats included, goes on meanwhile); docs/protocol.md says what it may do.
 Veto = Callable[[LayerState], "str | None"]
+# How long closing a participant waits for a veto still thinking (as the C++ participant).
+VETO_PATIENCE = 5.0
 
 
 def declaration_of(layer: Layer) -> LayerDeclaration:
@@ -146,6 +148,7 @@ class ContextParticipant:
         self._deferred: list[tuple[LayerState, SwitchResult]] = []
         self._deferred_lock = threading.Lock()
         self._asking: tuple[int, str] | None = None  # the proposal whose vetoes think
+        self._veto_workers: list[threading.Thread] = []
         self._answers: list[tuple[LayerState, str]] = []
         self._answers_lock = threading.Lock()
         self._handed_back = node.create_guard_condition(self._on_handed_back)
@@ -254,7 +257,18 @@ class ContextParticipant:
             self._run(self.protocol.leave(time.monotonic()))
 
     def close(self) -> None:
+        """Leave, and wait (up to VETO_PATIENCE s) for a veto still thinking: user code
+        left running past the node (and the interpreter) is what this avoids."""
         self.leave()
+        deadline = time.monotonic() + VETO_PATIENCE
+        for worker in self._veto_workers:
+            if worker is not threading.current_thread():
+                worker.join(max(0.0, deadline - time.monotonic()))
+        if any(worker.is_alive() for worker in self._veto_workers):
+            self.node.get_logger().warning(
+                f"a veto still runs {VETO_PATIENCE:g} s after the participant closed: left "
+                "to finish on its own"
+            )
         self.node.destroy_timer(self._heartbeat)
         self.node.destroy_timer(self._repeat_timer)
         self.node.destroy_subscription(self._state_sub)
@@ -300,9 +314,11 @@ class ContextParticipant:
             return  # its vetoes are still thinking
         self._asking = asked
         vetoes = list(self._vetoes)
-        threading.Thread(
+        worker = threading.Thread(
             target=self._ask_vetoes, args=(proposal, vetoes), name="contextros-veto", daemon=True
-        ).start()
+        )
+        self._veto_workers = [w for w in self._veto_workers if w.is_alive()] + [worker]
+        worker.start()
 
     def _ask_vetoes(self, proposal: LayerState, vetoes: list[Veto]) -> None:
         reasons = []
