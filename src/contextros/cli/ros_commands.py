@@ -218,7 +218,10 @@ def _add_command_options(parser: argparse.ArgumentParser) -> None:
         type=ACTIVATION_TIMEOUT,
         default=0.0,
         metavar="S",
-        help="synchronous timeout (default: the manager's)",
+        help=(
+            "the command's deadline, counted from its arrival at the manager: refused, never "
+            "carried out, if it has not started by then (default: the manager's)"
+        ),
     )
     parser.add_argument(
         "--atomic",
@@ -370,9 +373,6 @@ def _send(args: argparse.Namespace, on: list[str], off: list[str]) -> int:
         return 2
     if (args.expect or args.expect_count) and not (args.sync or args.atomic):
         print("contextros: --expect and --expect-count need --sync or --atomic", file=sys.stderr)
-        return 2
-    if args.expect_count < 0:
-        print("contextros: --expect-count must be 0 or more", file=sys.stderr)
         return 2
     request = {
         "command": "activate",

@@ -8,22 +8,11 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
-from contextros.protocol.events import (
-    ManagerAction,
-    ParticipantAction,
-    ParticipantDropped,
-    ParticipantJoined,
-    PublishProposal,
-    PublishState,
-)
+from contextros.protocol.events import DURABLE, ManagerAction, ParticipantAction
 from contextros.protocol.invariants import Invariants
 from contextros.protocol.manager import ManagerProtocol
 from contextros.protocol.participant import ParticipantProtocol
 from contextros.protocol.state import LayerState, ManagerMemory
-
-# The actions before which the adapter writes the manager's memory to its state file, if
-# it changed (`contextros.ros.manager_node`).
-DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)
 
 
 def state_file(

@@ -179,3 +179,6 @@ ManagerAction = (
     | ReportRejected
 )
 ParticipantAction = ApplyState | PublishStatus | StateRejected | ManagerLost | ManagerFound
+# The manager's actions before which an adapter writes its memory (`ManagerMemory`) to its
+# state file, if it changed: the same list for the ROS adapter and the explorer's model.
+DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)

@@ -9,6 +9,7 @@ replies (see `_DeferredResponses`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import os
 import threading
@@ -43,6 +44,7 @@ from contextros.protocol import (
     Reply,
     ReportRejected,
 )
+from contextros.protocol.events import DURABLE
 from contextros.ros.messages import (
     command_from_request,
     fill_query_response,
@@ -86,8 +88,6 @@ RECONCILE_RETRY_MAX = 30.0
 
 # A tick this much later than due means the manager's process did not run meanwhile.
 STALL = 0.5
-# Actions after which the manager's memory may differ from its state file.
-_DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)
 
 
 class StateFile:
@@ -114,11 +114,23 @@ class StateFile:
         if isinstance(memory, LayerState):
             memory = ManagerMemory(memory)
         partial = self._partial()
-        with partial.open("w", encoding="utf-8") as stream:
-            stream.write(memory.to_json(wall_time=time.time()))
-            stream.flush()
-            os.fsync(stream.fileno())
-        partial.replace(self.path)
+        try:
+            with partial.open("w", encoding="utf-8") as stream:
+                stream.write(memory.to_json(wall_time=time.time()))
+                stream.flush()
+                os.fsync(stream.fileno())
+            partial.replace(self.path)
+        except OSError:
+            with contextlib.suppress(OSError):
+                partial.unlink()
+            raise
+        # The rename itself on disk too: after a power cut, the old file (and an epoch
+        # handed out again) must not come back.
+        directory = os.open(self.path.parent, os.O_RDONLY)
+        try:
+            os.fsync(directory)
+        finally:
+            os.close(directory)
 
     def _partial(self) -> Path:
         return self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
@@ -751,7 +763,7 @@ class LayerManagerNode(Node):
     def _run(self, actions: list[ManagerAction]) -> None:
         if self.stepped_down:  # another manager runs this namespace: nothing goes out
             return
-        if self.state_file and any(isinstance(a, _DURABLE) for a in actions):
+        if self.state_file and any(isinstance(a, DURABLE) for a in actions):
             self._save()
         for action in actions:
             if isinstance(action, PublishState):
