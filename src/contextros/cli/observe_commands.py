@@ -333,6 +333,7 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     from contextros.protocol.manager import RECOVERY_REQUESTER
     from contextros.recording import read_recording
     from contextros.recording.reader import Damage
+    from contextros.rules.graph import answers_each_event
     from contextros.rules.replay import RecordedState, RuleReplay, declaration_from_recorded
 
     namespace = args.namespace
@@ -346,10 +347,12 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
     first_state = None
     start = end = None
     seen: set[str] = set()
+    answered = False  # the nodes' answers to each graph event are recorded: they are the values
     for item in read_recording(args.recording, note=notes.append, truncated=damages.append):
         start = item.time if start is None else start
         end = item.time
         seen.add(item.topic)
+        answered = answered or answers_each_event(item.topic, item.message)
         if item.topic == status_topic:
             declarations += [declaration_from_recorded(i) for i in item.message.layers]
         elif item.topic == state_topic and first_state is None:
@@ -374,6 +377,7 @@ def _replay(args: argparse.Namespace, rules: Any) -> Any:
         start=start,
         active=active,
         namespace=namespace,
+        graph_events=not answered,
     )
     recorded = []
     seen_first = False

@@ -1,55 +1,36 @@
 """The manager's watch on what its bindings set: the ROS side of `contextros.bindings.actual`.
 
-It listens to `/parameter_events` (rcl_interfaces/msg/ParameterEvent) and to each bound
-lifecycle node's `<node>/transition_event` (lifecycle_msgs/msg/TransitionEvent). Any
-process may publish those, so an event is only a hint: a bound parameter or node that an
-event says changed is read from the node itself (`get_parameters`, `get_state`), and only
-what the node answers counts. The reads, and the restores of bindings whose policy is
-`restore`, run as the manager's switches do, in its worker thread, one job at a time and
-never beside a switch (`LayerManagerNode` schedules them when no command waits).
+What the bound nodes have comes from `contextros.ros.graph_observer`, which reads the nodes
+themselves (when they appear, and after each of their events: an event is only a hint,
+any process may publish one), and says when a node left the graph. A read that was out
+while the driver set something may be older than what it set: it is dropped and the node
+read again. The restores of bindings whose policy is `restore` run as the manager's
+switches do, in its worker thread, one job at a time and never beside a switch
+(`LayerManagerNode` schedules them when no command waits).
 """
 
 from __future__ import annotations
 
 import time
-from typing import Any
-
-from lifecycle_msgs.msg import TransitionEvent
-from rcl_interfaces.msg import ParameterEvent
-from rclpy.node import Node
-from rclpy.qos import qos_profile_parameter_events
 
 from contextros.bindings.actual import ActualState, BindingKey, Drift, Reading
 from contextros.bindings.inference import Inference, infer
-from contextros.ros.bindings import PRIMARY_STATES, BindingDriver, BindingError, python_value
+from contextros.bindings.values import PRIMARY_STATES, lifecycle_state, plain_value
+from contextros.ros.bindings import BindingDriver, BindingError, shown
+from contextros.ros.graph_observer import GraphObserver, NodeRead
 from contextros.ros.node_log import NodeLog
 
-# What one event is read for at most (anyone can publish one): its node name's length and
-# the parameters looked at.
-MAX_NODE_NAME = 256
-MAX_PARAMETERS_PER_EVENT = 64
-# A bound parameter or node that could not be read (not up yet) is tried again this late.
-RETRY_READ = 2.0
-# How often the ROS graph is looked at for bound nodes that left or (re)appeared (seconds):
-# a restarted lifecycle node publishes no transition, it is read when it appears.
-GRAPH_LOOK = 1.0
+ABSENT = "(node not in the ROS graph)"
 
 
 class WatchJob:
-    """Reads and restores done in the worker thread (`run`); the outcome stays here."""
+    """Restores done in the worker thread (`run`); the outcome stays here."""
 
-    def __init__(self, reads: dict[BindingKey, float], restores: list[Drift]) -> None:
-        self.reads = reads
+    def __init__(self, restores: list[Drift]) -> None:
         self.restores = restores
-        self.unread: dict[BindingKey, str] = {}
         self.restored: list[tuple[Drift, str, bool]] = []  # drift, what happened, done
 
     def run(self, driver: BindingDriver) -> None:
-        for key, noticed in self.reads.items():
-            try:
-                driver.read(key, noticed)
-            except BindingError as error:
-                self.unread[key] = str(error)
         for drift in self.restores:
             try:
                 self.restored.append((drift, driver.set_back(drift.binding), True))
@@ -58,121 +39,57 @@ class WatchJob:
 
 
 class BindingWatch:
-    """The actual state of `driver`'s bindings on `node` (the manager): events in, reads
-    and restores out as `WatchJob`s, an `infer` drift's switch from `inference`."""
+    """The actual state of `driver`'s bindings, from what `observer` reads of the nodes;
+    restores out as `WatchJob`s, an `infer` drift's switch from `inference`."""
 
-    def __init__(self, node: Node, driver: BindingDriver, log: NodeLog) -> None:
+    def __init__(self, driver: BindingDriver, log: NodeLog, observer: GraphObserver) -> None:
         self.driver = driver
         self.log = log
         self.actual = ActualState(driver.bindings, driver.resolve)
-        self._parameters = self.actual.parameters_of()
-        # Keys to read, with when a change was first noticed and the value the event had.
-        now = time.time()
-        self._pending: dict[BindingKey, tuple[float, Any]] = {
-            key: (now, _UNKNOWN) for key in self.actual.bound_keys()
-        }
-        self._retry_at = 0.0  # monotonic: when keys never read are tried again
-        self._node = node
-        # The bound nodes' event publishers (their gids) at the last look at the graph.
-        self._endpoints: dict[tuple[str, bool], set[bytes]] | None = None
-        self._graph_at = 0.0  # monotonic: the next look
+        self._observer = observer
+        # When the driver last read or set something (monotonic): a read asked before may
+        # be older than that.
+        self._driven_at = 0.0
         self._logged: set[tuple[int, float]] = set()  # drifts logged (binding, since)
         self._inferred = ""  # the last inference submitted or logged
-        if self._parameters:
-            node.create_subscription(
-                ParameterEvent,
-                "/parameter_events",
-                self._on_parameter_event,
-                qos_profile_parameter_events,
-            )
-        for lifecycle in sorted(self.actual.lifecycle_nodes()):
-            node.create_subscription(
-                TransitionEvent,
-                f"{lifecycle}/transition_event",
-                lambda msg, name=lifecycle: self._on_transition(name, msg),
-                10,
-            )
+        parameters = self.actual.parameters_of()
+        observer.subscribe(self._on_read)
+        observer.follow(sorted(self.actual.lifecycle_nodes()), parameters)
 
-    # -- events: hints of a change ------------------------------------------------------
+    # -- what the nodes have ------------------------------------------------------------
 
-    def _on_parameter_event(self, msg: Any) -> None:
-        node = msg.node
-        if not isinstance(node, str) or len(node) > MAX_NODE_NAME:
+    def _on_read(self, read: NodeRead) -> None:
+        if read.asked < self._driven_at and not read.absent:
+            self._observer.refresh(read.node)
             return
-        names = self._parameters.get(node)
-        if names is None:
+        wall = time.time()
+        if read.state:
+            key: BindingKey = (read.node, "")
+            if key in self.actual.bound_keys():
+                self.actual.read(key, _state_reading(read, wall))
             return
-        now = time.time()
-        changed = [*msg.new_parameters[:MAX_PARAMETERS_PER_EVENT]]
-        changed += msg.changed_parameters[:MAX_PARAMETERS_PER_EVENT]
-        for parameter in changed:
-            if parameter.name in names:
-                self._hint((node, parameter.name), now, python_value(parameter.value))
-        for parameter in msg.deleted_parameters[:MAX_PARAMETERS_PER_EVENT]:
-            if parameter.name in names:
-                self._hint((node, parameter.name), now, None)
-
-    def _on_transition(self, node: str, msg: Any) -> None:
-        state = PRIMARY_STATES.get(msg.goal_state.id)
-        if state is not None:  # (a transition state is followed by a primary one)
-            self._hint((node, ""), time.time(), state)
-
-    def _hint(self, key: BindingKey, now: float, value: Any) -> None:
-        noticed = self._pending.get(key, (now, None))[0]
-        self._pending[key] = (min(noticed, now), value)
+        message = read.message
+        for parameter in [*message.new_parameters, *message.deleted_parameters]:
+            key = (read.node, parameter.name)
+            if key not in self.actual.bound_keys():
+                continue
+            if read.absent:
+                reading = Reading(None, ABSENT, wall, wall, absent=True)
+            else:
+                value = plain_value(parameter.value)[0]
+                reading = Reading(value, shown(parameter.value), wall, read.noticed)
+            self.actual.read(key, reading)
 
     # -- jobs ---------------------------------------------------------------------------
 
     def next_job(self) -> WatchJob | None:
-        """What to read or set back now (None: nothing): call it when no switch runs."""
+        """What to set back now (None: nothing): call it when no switch runs."""
         self.switched(changed=False)
-        now = time.monotonic()
-        if now >= self._graph_at:
-            self._graph_at = now + GRAPH_LOOK
-            self._look_at_graph()
-        if now >= self._retry_at:
-            self._retry_at = now + RETRY_READ
-            for key in self.actual.bound_keys() - self.actual.readings.keys():
-                self._pending.setdefault(key, (time.time(), _UNKNOWN))
-        reads = {}
-        for key, (noticed, value) in self._pending.items():
-            reading = self.actual.readings.get(key)
-            # An event showing what was read (a switch's own set, heard after it) is no news.
-            if reading is None or value is _UNKNOWN or not _same(reading.value, value):
-                reads[key] = noticed
-        self._pending.clear()
-        restores = self.actual.restore_due(now)
+        restores = self.actual.restore_due(time.monotonic())
         for drift in self.actual.drifts():
             if drift.policy == "restore" and self.actual.given_up(drift.key):
                 self._log_drift(drift, f"{self.actual.state(drift.index).action}")
-        return WatchJob(reads, restores) if reads or restores else None
-
-    def _look_at_graph(self) -> None:
-        """A bound node whose event publisher left the graph has nothing (a drift, not set
-        back: there is no one to set); one with a new publisher (it started, or restarted)
-        is read."""
-        # (node, its lifecycle state: not its parameters) -> its event publishers' gids
-        endpoints: dict[tuple[str, bool], set[bytes]] = {}
-        if self._parameters:
-            for info in self._node.get_publishers_info_by_topic("/parameter_events"):
-                name = f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-                if name in self._parameters:
-                    endpoints.setdefault((name, False), set()).add(bytes(info.endpoint_gid))
-        for lifecycle in self.actual.lifecycle_nodes():
-            for info in self._node.get_publishers_info_by_topic(f"{lifecycle}/transition_event"):
-                endpoints.setdefault((lifecycle, True), set()).add(bytes(info.endpoint_gid))
-        before, self._endpoints = self._endpoints, endpoints
-        if before is None:
-            return
-        wall = time.time()
-        for key in self.actual.bound_keys():
-            watched = (key[0], not key[1])
-            now, then = endpoints.get(watched, set()), before.get(watched, set())
-            if then and not now:
-                gone = Reading(None, "(node not in the ROS graph)", wall, wall, absent=True)
-                self.actual.read(key, gone)
-            elif now - then:
-                self._pending[key] = (wall, _UNKNOWN)
+        return WatchJob(restores) if restores else None
 
     def finished(self, job: WatchJob) -> None:
         """A job's outcome (executor thread)."""
@@ -198,6 +115,8 @@ class BindingWatch:
         """Take what the driver read and set; after a switch (`changed`), ROS reflects its
         configuration now, and what it set is what its layers set."""
         readings = self.driver.take_readings()
+        if readings:
+            self._driven_at = time.monotonic()
         for key, reading in readings:
             self.actual.read(key, reading)
         if changed or self.actual.applied != self.driver.applied:
@@ -245,11 +164,12 @@ class BindingWatch:
         )
 
 
-_UNKNOWN = object()  # no value from an event: read it
-
-
-def _same(a: Any, b: Any) -> bool:
-    return type(a) is type(b) and a == b
+def _state_reading(read: NodeRead, wall: float) -> Reading:
+    if read.absent:
+        return Reading(None, ABSENT, wall, wall, absent=True)
+    state_id = read.message.goal_state.id
+    name = PRIMARY_STATES.get(state_id) or f"in transition ({lifecycle_state(state_id) or '?'})"
+    return Reading(name, name, wall, read.noticed)
 
 
 def _clock(wall: float) -> str:

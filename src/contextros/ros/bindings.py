@@ -24,24 +24,27 @@ from pathlib import Path
 from typing import Any
 
 from contextros_interfaces.msg import BindingInfo
-from lifecycle_msgs.msg import State, Transition
+from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.msg import Parameter, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
 
 from contextros.bindings import Bindings, LifecycleChange, ParameterChange, Plan, transitions
 from contextros.bindings.actual import ActualState, BindingKey, Reading
+from contextros.bindings.values import (
+    NOT_SET,
+    PRIMARY_STATES,
+    from_json,
+    parameter_fields,
+    plain_value,
+    shown_parameter,
+    to_json,
+)
 from contextros.language.bindings import LifecycleBinding, ParameterBinding
 from contextros.language.bindings import ParameterValue as Value
 from contextros.ros.messages import seconds_to_stamp
 
-PRIMARY_STATES = {
-    State.PRIMARY_STATE_UNCONFIGURED: "unconfigured",
-    State.PRIMARY_STATE_INACTIVE: "inactive",
-    State.PRIMARY_STATE_ACTIVE: "active",
-    State.PRIMARY_STATE_FINALIZED: "finalized",
-}
 _MAX_REASON = 300
 
 
@@ -57,34 +60,14 @@ def _printable(text: str) -> str:
 
 def to_parameter_value(value: Value | None, like: Any = None) -> Any:
     """A ParameterValue message; an integer goes to a double parameter as a double."""
-    message = ParameterValue()
-    if value is None:
-        return message  # PARAMETER_NOT_SET
-    if isinstance(value, bool):
-        message.type, message.bool_value = ParameterType.PARAMETER_BOOL, value
-    elif isinstance(value, int) and not (
-        like is not None and like.type == ParameterType.PARAMETER_DOUBLE
-    ):
-        message.type, message.integer_value = ParameterType.PARAMETER_INTEGER, value
-    elif isinstance(value, (int, float)):
-        message.type, message.double_value = ParameterType.PARAMETER_DOUBLE, float(value)
-    else:
-        message.type, message.string_value = ParameterType.PARAMETER_STRING, value
+    kind, field_name, plain = parameter_fields(value, NOT_SET if like is None else like.type)
+    message = ParameterValue(type=kind)
+    if field_name:
+        setattr(message, field_name, plain)
     return message
 
 
-def shown(message: Any) -> str:
-    """A ParameterValue as text, for messages."""
-    kind = message.type
-    if kind == ParameterType.PARAMETER_BOOL:
-        return "true" if message.bool_value else "false"
-    if kind == ParameterType.PARAMETER_INTEGER:
-        return str(message.integer_value)
-    if kind == ParameterType.PARAMETER_DOUBLE:
-        return f"{message.double_value:g}"
-    if kind == ParameterType.PARAMETER_STRING:
-        return repr(message.string_value)
-    return "(not set)" if kind == ParameterType.PARAMETER_NOT_SET else f"(type {kind})"
+shown = shown_parameter  # a ParameterValue as text, for messages
 
 
 class BindingDriver:
@@ -256,7 +239,7 @@ class BindingDriver:
         if change.restore:
             target = self._original_parameters[key]
             originals.restored.append(("parameter", key))
-            if target.type == ParameterType.PARAMETER_NOT_SET:
+            if target.type == NOT_SET:
                 return  # it had no value before: leave the last one
         else:
             target = to_parameter_value(change.value, like=current)
@@ -299,13 +282,13 @@ class BindingDriver:
 
     # -- the actual state: what the nodes have (contextros.bindings.actual) -------------
 
-    def _seen(self, key: BindingKey, value: Any, noticed: float | None = None) -> None:
+    def _seen(self, key: BindingKey, value: Any) -> None:
         """Record what node and parameter `key` has: a ParameterValue, or a lifecycle state."""
         wall = time.time()
         if isinstance(value, str):
-            reading = Reading(value, value, wall, noticed or wall)
+            reading = Reading(value, value, wall, wall)
         else:
-            reading = Reading(python_value(value), shown(value), wall, noticed or wall)
+            reading = Reading(plain_value(value)[0], shown(value), wall, wall)
         with self._lock:
             self._readings.append((key, reading))
 
@@ -314,21 +297,6 @@ class BindingDriver:
         with self._lock:
             readings, self._readings = self._readings, []
         return readings
-
-    def read(self, key: BindingKey, noticed: float) -> None:
-        """Read what the node has now (a watch's check; recorded for `take_readings`); a
-        node whose service is not discovered is not waited for. BindingError if no answer."""
-        node, name = key
-        kind, service_type = ("get_parameters", GetParameters) if name else ("get_state", GetState)
-        if not self._client(node, kind, service_type).service_is_ready():
-            raise BindingError(f"node {node} is not in the ROS graph ({node}/{kind})")
-        if name:
-            self._seen(key, self._get(node, name), noticed)
-            return
-        response = self._call(node, kind, GetState, GetState.Request(), "its lifecycle state")
-        label = PRIMARY_STATES.get(response.current_state.id)
-        state = label or f"in transition ({_printable(response.current_state.label)[:40]})"
-        self._seen(key, state, noticed)
 
     def set_back(self, binding: ParameterBinding | LifecycleBinding) -> str:
         """Give the node back what `binding` sets (its policy is `restore`); what was done,
@@ -471,16 +439,6 @@ class BindingDriver:
             raise BindingError(f"lifecycle node {node}: transition {label}{state} failed{by}")
 
 
-# Parameter values kept across restarts: the scalar types a layer can set (any other type
-# is not kept: a restarted manager reads the value in place instead).
-_FIELDS = {
-    ParameterType.PARAMETER_BOOL: ("bool_value", bool),
-    ParameterType.PARAMETER_INTEGER: ("integer_value", int),
-    ParameterType.PARAMETER_DOUBLE: ("double_value", float),
-    ParameterType.PARAMETER_STRING: ("string_value", str),
-}
-
-
 @dataclass(frozen=True)
 class BindingResult:
     ok: bool
@@ -493,25 +451,16 @@ def _shown_value(value: Any) -> str:
 
 
 def _value_to_json(message: Any) -> dict[str, Any]:
-    known = _FIELDS.get(message.type)
-    if known is None:
-        return {"type": ParameterType.PARAMETER_NOT_SET, "value": None}
-    return {"type": message.type, "value": getattr(message, known[0])}
+    """Kept across restarts: the types a layer can set (another is kept as not set: a
+    restarted manager reads the value in place instead)."""
+    return to_json(message)
 
 
 def _value_from_json(data: Any) -> Any:
-    message = ParameterValue()
-    kind = data["type"]
-    if kind == ParameterType.PARAMETER_NOT_SET:
-        return message
-    field_name, kind_type = _FIELDS[kind]
-    value = data["value"]
-    if kind_type is float and isinstance(value, int) and not isinstance(value, bool):
-        value = float(value)
-    if type(value) is not kind_type:
-        raise ValueError(f"parameter value {value!r} is not of type {kind}")
-    message.type = kind
-    setattr(message, field_name, value)
+    kind, field_name, value = from_json(data)
+    message = ParameterValue(type=kind)
+    if field_name:
+        setattr(message, field_name, value)
     return message
 
 
@@ -521,12 +470,6 @@ class _Originals:
 
     read: list[tuple[str, Any]] = field(default_factory=list)
     restored: list[tuple[str, Any]] = field(default_factory=list)
-
-
-def python_value(message: Any) -> Value | None:
-    """A ParameterValue's value (None: not set, or of a type no binding sets)."""
-    known = _FIELDS.get(message.type)
-    return None if known is None else getattr(message, known[0])
 
 
 def _fill_actual(info: Any, actual: ActualState, index: int) -> None:

@@ -58,6 +58,7 @@ from contextros.rules import Firing, RuleSet
 if TYPE_CHECKING:
     from contextros.ros.binding_watch import BindingWatch, WatchJob
     from contextros.ros.bindings import BindingDriver
+    from contextros.ros.graph_observer import GraphObserver
     from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
     ACTIVATE_QOS,
@@ -84,6 +85,8 @@ STATUS_LINGER = 0.0005
 # After a reconcile failed: its first retry, doubling up to the maximum (seconds).
 RECONCILE_RETRY = 1.0
 RECONCILE_RETRY_MAX = 30.0
+# How often the graph observer looks for bound or ruled nodes that appeared, left or restarted.
+GRAPH_PERIOD = 0.5
 
 
 # A tick this much later than due means the manager's process did not run meanwhile.
@@ -289,6 +292,7 @@ class LayerManagerNode(Node):
         self._reconcile_failed_for: tuple[str, ...] | None = None
         self._reconcile_target: tuple[str, ...] = ()
         self._reconcile_after = 0.0
+        self._graph_observer: GraphObserver | None = None
         if bindings:
             from contextros.ros.bindings import BindingDriver
 
@@ -300,12 +304,23 @@ class LayerManagerNode(Node):
             self.bindings = BindingDriver(self, bindings, memory=memory)
             from contextros.ros.binding_watch import BindingWatch
 
-            self.watch = BindingWatch(self, self.bindings, self.log)
+            self.watch = BindingWatch(self.bindings, self.log, self._graph())
         self.rules: RuleRunner | None = None
         if rules is not None and rules.rules:
             from contextros.ros.rules import RuleRunner
 
-            self.rules = RuleRunner(self, rules, self._submit_rule, self._relations)
+            self.rules = RuleRunner(
+                self, rules, self._submit_rule, self._relations, graph=self._graph
+            )
+
+    def _graph(self) -> GraphObserver:
+        """The one reader of lifecycle states and parameters, shared by the bindings' watch
+        and the rules (one subscription per topic, one read per event): made when needed."""
+        if self._graph_observer is None:
+            from contextros.ros.graph_observer import GraphObserver
+
+            self._graph_observer = GraphObserver(self, period=GRAPH_PERIOD)
+        return self._graph_observer
 
     # -- executor callbacks -----------------------------------------------------------------
 

@@ -1,10 +1,11 @@
 """`contextros record`: the protocol's topics and the rules' input topics into MCAP.
 
 For rules on the ROS graph's state (`lifecycle NODE`, `param NODE.PARAMETER`) that is
-`/parameter_events` and each lifecycle node's `transition_event` topic, plus what the nodes'
-get_state / get_parameters services answer when they appear (and that they left), written as
-events on the channels `NODE/get_state` / `NODE/get_parameters` (`GraphWatch`), so the
-replay has the values the manager had from the start (contextros.rules.graph).
+`/parameter_events` and each lifecycle node's `transition_event` topic (as they came: hints,
+anyone may publish them), plus what the nodes answered when the recorder read them as the
+manager does (`GraphObserver`: when they appear, after each of their events) and that they
+left, written as stamped events on the channels `NODE/get_state` / `NODE/get_parameters`,
+so the replay has the values the manager had (contextros.rules.graph).
 
 Each topic is subscribed once the ROS graph shows its type, raw (the serialized CDR bytes
 are written as they arrived, as rosbag2 does), with its message definition as a `ros2msg`
@@ -29,9 +30,9 @@ from rclpy.serialization import serialize_message
 from contextros.language.rules import RuleDecl
 from contextros.recording.definitions import DefinitionError, message_definition, type_of
 from contextros.recording.writer import CHUNK_PERIOD, RecordingWriter
-from contextros.ros.graph_watch import GraphWatch
+from contextros.ros.graph_observer import TRANSITION_QOS, GraphObserver, NodeRead
 from contextros.ros.message_types import message_class
-from contextros.ros.rules import RULE_QOS, TRANSITION_QOS
+from contextros.ros.rules import RULE_QOS
 from contextros.ros.topics import (
     HEARTBEAT_QOS,
     HEARTBEAT_TOPIC,
@@ -106,18 +107,11 @@ class Recorder:
         self._discover()
         self._fetched: dict[str, int] = {}  # channel name -> id, of the answers written
         graph = GraphInputs(graph_rules, lambda name: _resolved(node, name))
-        self._watch = (
-            GraphWatch(
-                node,
-                list(graph.lifecycle),
-                graph.parameter_nodes(),
-                self._write_fetched,
-                period=discovery_period,
-                listening=self._listening,
-            )
-            if graph.nodes()
-            else None
-        )
+        self._observer: GraphObserver | None = None
+        if graph.nodes():
+            self._observer = GraphObserver(node, period=discovery_period, listening=self._listening)
+            self._observer.subscribe(self._write_fetched)
+            self._observer.follow(graph.lifecycle, graph.parameter_nodes())
 
     @property
     def waiting_for(self) -> list[str]:
@@ -176,10 +170,11 @@ class Recorder:
         subscription = self._by_topic.get(topic)
         return subscription is not None and subscription.get_publisher_count() > 0
 
-    def _write_fetched(self, channel_name: str, message: Any) -> None:
+    def _write_fetched(self, read: NodeRead) -> None:
         """A node's answer (or its absence) as an event, serialized as it would arrive."""
         if self._finished:
             return
+        channel_name, message = read.channel, read.message
         if channel_name not in self._fetched:
             schema = self._schema(type_of(message))
             self._fetched[channel_name] = self._writer.add_channel(channel_name, "cdr", schema)

@@ -7,9 +7,9 @@ file:line:col and the rule stays off) and only then is the topic subscribed, so 
 is ever evaluated against a field that does not exist. A topic with no publisher after
 `UNPUBLISHED_GRACE` is logged once (a misspelt name leaves its rules waiting for ever).
 
-Lifecycle states and parameters (`lifecycle NODE`, `param NODE.PARAMETER`) come from
-`/parameter_events`, each node's `transition_event` topic and, when a node appears, its
-get_state / get_parameters services (`GraphWatch`), all read by the same
+Lifecycle states and parameters (`lifecycle NODE`, `param NODE.PARAMETER`) come from the
+nodes' get_state / get_parameters services, read by the manager's `GraphObserver` when a
+node appears and after each of its events (hints only), and go through the same
 `contextros.rules.graph.GraphInputs` as the replay. See docs/rules.md.
 """
 
@@ -21,19 +21,17 @@ from collections.abc import Callable
 from typing import Any
 
 from contextros_interfaces.msg import RuleInfo
-from lifecycle_msgs.msg import TransitionEvent
-from rcl_interfaces.msg import ParameterEvent
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy, qos_profile_parameter_events
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from contextros.language.diagnostics import Diagnostic
 from contextros.protocol import LayerState
 from contextros.protocol.manager import RECOVERY_REQUESTER
-from contextros.ros.graph_watch import GraphWatch
+from contextros.ros.graph_observer import GraphObserver, NodeRead
 from contextros.ros.message_types import field_kind, message_class
 from contextros.rules import Firing, RuleEngine, RuleSet
 from contextros.rules.firings import FiringQueue
-from contextros.rules.graph import PARAMETER_EVENTS, TRANSITION_EVENT, GraphInputs
+from contextros.rules.graph import GraphInputs
 from contextros.rules.ruleset import FieldKind
 
 __all__ = ["RULE_QOS", "UNPUBLISHED_GRACE", "RuleRunner", "field_kind", "message_class"]
@@ -41,10 +39,6 @@ __all__ = ["RULE_QOS", "UNPUBLISHED_GRACE", "RuleRunner", "field_kind", "message
 # Best effort matches reliable and best-effort publishers alike; sensors are noisy anyway.
 RULE_QOS = QoSProfile(
     history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.BEST_EFFORT
-)
-# A lifecycle node's transition events (rcl_lifecycle publishes them reliable, depth 10).
-TRANSITION_QOS = QoSProfile(
-    history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE
 )
 # Seconds after the manager's start before a topic the rules read and no node publishes is
 # logged: a robot's sensor nodes are up by then (started with the manager, or before it),
@@ -64,7 +58,10 @@ class RuleRunner:
         *,
         discovery_period: float = 0.2,
         unpublished_grace: float = UNPUBLISHED_GRACE,
+        graph: Callable[[], GraphObserver] | None = None,
     ) -> None:
+        """`graph` gives the observer of lifecycle states and parameters to read them from
+        (the manager's, shared with its bindings; by default one of the runner's own)."""
         self.node = node
         self.rules = rules
         self.engine = RuleEngine(rules)
@@ -92,41 +89,13 @@ class RuleRunner:
             # The file as given on the command line (`where`, in reasons on the wire: its name).
             node.get_logger().info(f"rule {rule.name} ({rule.path}:{rule.at.line}): {rule.text}")
         self._discover()
-        self.graph = GraphInputs(rules.rules, node.resolve_topic_name)
-        self._watch = self._watch_graph(discovery_period) if self.graph.nodes() else None
-
-    def _watch_graph(self, period: float) -> GraphWatch:
-        """Subscribe to the events of the nodes the rules read and ask their current state."""
-        if self.graph.parameters:
-            self._subscriptions.append(
-                self.node.create_subscription(
-                    ParameterEvent,
-                    PARAMETER_EVENTS,
-                    lambda event: self._on_graph(
-                        PARAMETER_EVENTS, event, getattr(event, "node", None)
-                    ),
-                    qos_profile_parameter_events,
-                )
-            )
-        for fqn in self.graph.lifecycle:
-            topic = f"{fqn}/{TRANSITION_EVENT}"
-            self._subscriptions.append(
-                self.node.create_subscription(
-                    TransitionEvent,
-                    topic,
-                    lambda event, t=topic, n=fqn: self._on_graph(t, event, n),
-                    TRANSITION_QOS,
-                )
-            )
-        nodes = ", ".join(self.graph.nodes())
-        self.node.get_logger().info(f"rules read the lifecycle states and parameters of {nodes}")
-        return GraphWatch(
-            self.node,
-            list(self.graph.lifecycle),
-            self.graph.parameter_nodes(),
-            lambda channel, message: self._on_graph(channel, message, None),
-            period=period,
-        )
+        self.graph = GraphInputs(rules.rules, node.resolve_topic_name, events=False)
+        if self.graph.nodes():
+            observer = graph() if graph else GraphObserver(node, period=discovery_period)
+            observer.subscribe(self._on_read)
+            observer.follow(self.graph.lifecycle, self.graph.parameter_nodes())
+            nodes = ", ".join(self.graph.nodes())
+            node.get_logger().info(f"rules read the lifecycle states and parameters of {nodes}")
 
     # -- binding ------------------------------------------------------------------------
 
@@ -231,10 +200,9 @@ class RuleRunner:
             self.engine.failures.clear()
         self.firings.fire(firings)
 
-    def _on_graph(self, channel: str, message: Any, fqn: object) -> None:
-        """An event (of node `fqn`) or a node's answer: the rules reading its values."""
-        if isinstance(fqn, str) and self._watch is not None:
-            self._watch.event_seen(fqn)
+    def _on_read(self, read: NodeRead) -> None:
+        """What a node answered (or that it left): the rules reading its values."""
+        channel, message = read.channel, read.message
         now = time.monotonic()
         firings: list[Firing] = []
         try:

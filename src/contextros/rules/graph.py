@@ -4,20 +4,25 @@
     rule Slow: Careful while param controller.max_speed < 0.5
 
 A graph condition is one more source of values for the engine (`RuleEngine.on_value`, keyed
-by `GraphRef.text`). Its values come in messages, whatever their channel:
+by `GraphRef.text`). Its values come from the node itself: `NODE/get_state` and
+`NODE/get_parameters`, what the node answered when it appeared on the graph and after each
+of its events, written as the messages an event would be (a TransitionEvent to the current
+state, a ParameterEvent with the values as new parameters; when the node left, a
+TransitionEvent to `unknown`, a ParameterEvent deleting them: no value). The manager's
+`contextros.ros.graph_observer` makes these and `contextros record` writes them under these
+names (stamped with the time of the read), so the replay reads what the manager read.
 
-- `/parameter_events` (rcl_interfaces/msg/ParameterEvent): any process may publish there, so
-  only the parameters the rules name are read, each value is checked (a plain bool, number
-  or string of at most MAX_STRING characters, of the kind the rules compare it with) and
-  anything else leaves the parameter without a value, with a problem to log;
-- `NODE/transition_event` (lifecycle_msgs/msg/TransitionEvent): its goal state;
-- `NODE/get_state` and `NODE/get_parameters`: what the node answered when it appeared on the
-  graph, written as the same two message types (and, when it left, a TransitionEvent to the
-  `unknown` state, a ParameterEvent deleting the parameters: no value). The manager makes
-  these itself (`contextros.ros.graph_watch`) and `contextros record` writes them under
-  these names, so the replay reads what the manager read.
+The events (`/parameter_events`, `NODE/transition_event`) are hints only: any process may
+publish them, so the observer reads the node when one comes, and its answer counts. A
+recording made before the observer (its answers unstamped, only when a node appeared) or by
+another tool has no answer after each event: there the events are the values
+(`GraphInputs(events=True)`, `answers_each_event`), as the manager took them then.
 
-The live manager and `contextros rules replay` call the same `GraphInputs.read`.
+Either way, only the parameters the rules name are read, each value is checked (a plain
+bool, number or string of at most MAX_STRING characters, of the kind the rules compare it
+with: `contextros.bindings.values`), and anything else leaves the parameter without a
+value, with a problem to log. The live manager and `contextros rules replay` call the same
+`GraphInputs.read`.
 """
 
 from __future__ import annotations
@@ -25,34 +30,17 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, cast
+from typing import Any
 
-from contextros.language.rules import (
-    LIFECYCLE_STATES,
-    GraphRef,
-    Literal,
-    RuleDecl,
-    Value,
-)
+from contextros.bindings.values import MAX_STRING as MAX_STRING
+from contextros.bindings.values import UNKNOWN_STATE, lifecycle_state, plain_value
+from contextros.language.rules import GraphRef, Literal, RuleDecl, Value
 from contextros.rules.ruleset import comparisons
 
 PARAMETER_EVENTS = "/parameter_events"
 TRANSITION_EVENT = "transition_event"  # a lifecycle node's topic of transitions
 GET_STATE = "get_state"  # the channel of what the node's get_state service answered
 GET_PARAMETERS = "get_parameters"  # ... and its get_parameters service
-# The longest string parameter value a rule reads (a longer one has no value: untrusted).
-MAX_STRING = 4096
-# rcl_interfaces/msg/ParameterType: the plain kinds a rule compares (the arrays it cannot).
-_PARAMETER_KINDS = {1: "bool", 2: "number", 3: "number", 4: "string"}
-_VALUE_FIELDS = {1: "bool_value", 2: "integer_value", 3: "double_value", 4: "string_value"}
-_VALUE_TYPES: dict[int, type] = {1: bool, 2: int, 3: float, 4: str}
-_ARRAYS = {
-    5: "byte array",
-    6: "bool array",
-    7: "integer array",
-    8: "double array",
-    9: "string array",
-}
 
 
 @dataclass(frozen=True)
@@ -74,6 +62,17 @@ def graph_topics(rules: Iterable[RuleDecl]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(topics))
 
 
+def answers_each_event(channel: str, message: Any) -> bool:
+    """Whether `message` on `channel` is a node's answer stamped with the time of its read:
+    written by a recorder that read the node after each of its events (module docstring)."""
+    if channel.endswith(f"/{GET_STATE}"):
+        return bool(getattr(message, "timestamp", 0))
+    if channel.endswith(f"/{GET_PARAMETERS}"):
+        stamp = getattr(message, "stamp", None)
+        return bool(getattr(stamp, "sec", 0) or getattr(stamp, "nanosec", 0))
+    return False
+
+
 def resolve_name(namespace: str, name: str) -> str:
     """A node or topic name as the rules write it, resolved in `namespace` (no remapping;
     the live manager asks rclpy, which also applies remaps)."""
@@ -87,7 +86,11 @@ class GraphInputs:
     them. `resolve` turns a node name as written into its full name (the manager's
     namespace)."""
 
-    def __init__(self, rules: Iterable[RuleDecl], resolve: Callable[[str], str]) -> None:
+    def __init__(
+        self, rules: Iterable[RuleDecl], resolve: Callable[[str], str], *, events: bool = True
+    ) -> None:
+        """`events`: whether the events themselves are values (a recording without the
+        node's answers to each event: module docstring), or only the answers are."""
         rules = list(rules)
         self.lifecycle: dict[str, list[str]] = {}  # resolved node -> sources
         self.parameters: dict[tuple[str, str], list[str]] = {}  # (node, parameter) -> sources
@@ -106,12 +109,12 @@ class GraphInputs:
                     readers.append(rule.name)
         self._kinds = _expected_kinds(rules)
         self._channels: dict[str, Callable[[Any], list[GraphInput]]] = {}
-        if self.parameters:
+        if self.parameters and events:
             self._channels[PARAMETER_EVENTS] = self._parameter_event
         for node in self.parameter_nodes():
             self._channels[f"{node}/{GET_PARAMETERS}"] = self._parameter_event
         for node in self.lifecycle:
-            for channel in (TRANSITION_EVENT, GET_STATE):
+            for channel in (TRANSITION_EVENT, GET_STATE) if events else (GET_STATE,):
                 self._channels[f"{node}/{channel}"] = partial(self._transition, node)
         # Problems with values seen (to log), each once: (source, what was wrong).
         self.problems: list[str] = []
@@ -150,8 +153,8 @@ class GraphInputs:
         sources = self.lifecycle.get(node, ())
         state_id = getattr(getattr(event, "goal_state", None), "id", None)
         value: str | None = None
-        if state_id != 0:  # 0: unknown, as when the node is absent
-            value = LIFECYCLE_STATES.get(state_id) if isinstance(state_id, int) else None
+        if state_id != UNKNOWN_STATE:  # as when the node is absent
+            value = lifecycle_state(state_id)
             if value is None:
                 for source in sources:
                     self._problem(
@@ -180,7 +183,7 @@ class GraphInputs:
 
     def _checked(self, source: str, node: str, value: Any) -> Value | None:
         """A parameter's value if it is one the rules can compare, else None (logged)."""
-        plain, why = parameter_value(value)
+        plain, why = plain_value(value)
         if plain is None:
             self._problem(source, f"{source} on {node} is {why}: it has no value for the rules")
             return None
@@ -207,23 +210,6 @@ class GraphInputs:
         if key not in self._reported:
             self._reported.add(key)
             self.problems.append(text)
-
-
-def parameter_value(value: Any) -> tuple[Value | None, str]:
-    """A ParameterValue as a plain value, or (None, why not)."""
-    kind = getattr(value, "type", None)
-    if kind == 0:
-        return None, "not set (does the node declare it?)"
-    if kind in _ARRAYS:
-        return None, f"a {_ARRAYS[kind]} (rules compare plain values)"
-    if kind not in _PARAMETER_KINDS:
-        return None, f"of an unknown parameter type {kind!r}"
-    plain: Any = getattr(value, _VALUE_FIELDS[kind], None)
-    if isinstance(plain, str) and len(plain) > MAX_STRING:
-        return None, f"a string of {len(plain)} characters (more than {MAX_STRING})"
-    if type(plain) is not _VALUE_TYPES[kind]:  # (exactly: a bool is not an integer)
-        return None, f"malformed (type {kind} with a {type(plain).__name__} value)"
-    return cast(Value, plain), ""
 
 
 def _expected_kinds(rules: Iterable[RuleDecl]) -> dict[str, set[str]]:

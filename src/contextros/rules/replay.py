@@ -82,7 +82,8 @@ class RuleReplay:
     participants' (from the recorded statuses), `layer_files` the layer files' relations,
     as `contextros manager --layers` takes them (`declarations_from_files`). Recorded
     lifecycle states and parameters go to `graph_message` (names resolved in `namespace`,
-    the live manager's)."""
+    the live manager's; `graph_events`: whether the events are values, in a recording
+    without the nodes' answers to each event: contextros.rules.graph)."""
 
     def __init__(
         self,
@@ -94,10 +95,13 @@ class RuleReplay:
         active: Sequence[str] = (),
         tick_period: float = MANAGER_TICK,
         namespace: str = "/",
+        graph_events: bool = True,
     ) -> None:
         self.rules = rules
         self.engine = RuleEngine(rules)
-        self.graph = GraphInputs(rules.rules, lambda name: resolve_name(namespace, name))
+        self.graph = GraphInputs(
+            rules.rules, lambda name: resolve_name(namespace, name), events=graph_events
+        )
         self.result = ReplayResult()
         self._tick_period = tick_period
         self._next_tick = start
