@@ -89,6 +89,8 @@ RECONCILE_RETRY_MAX = 30.0
 GRAPH_PERIOD = 0.5
 
 
+# What a command waited for when the adapter refuses it at its deadline.
+BEHIND_A_DRIVE = "behind the parameters and lifecycle states of the command before it"
 # A tick this much later than due means the manager's process did not run meanwhile.
 STALL = 0.5
 
@@ -433,6 +435,8 @@ class LayerManagerNode(Node):
             if self._retried_at != self.protocol.state.epoch:
                 self._retried_at = self.protocol.state.epoch
                 self.rules.retry()
+        if self._commands and self._driving:
+            self._expire_behind_the_drive(now)
         if self._commands:
             self._next_command()
         self._reconcile()
@@ -460,9 +464,8 @@ class LayerManagerNode(Node):
         while self._commands and not self._driving:
             command, received = self._commands[0]
             now = time.monotonic()
-            if self.protocol.would_hold(command, now) and not self.protocol.expired(
-                command, now, received
-            ):
+            held = self.protocol.would_hold(command, now)
+            if held and not self.protocol.expired(command, now, received):
                 return
             self._commands.popleft()
             problem, planned = self.protocol.preview(command)
@@ -473,15 +476,26 @@ class LayerManagerNode(Node):
                 self._reply(
                     command.request_id, ActivationResult(False, refusal, state.epoch, state.active)
                 )
-            elif (
-                problem
-                or not self.bindings.plan(applied, planned)
-                or self.protocol.expired(command, now, received)
-            ):
-                # (an expired command is refused by the protocol, nothing driven)
+            elif self.protocol.expired(command, now, received) and not held:
+                # Nothing driven; not held by the protocol: it waited behind a drive.
+                self._run(self.protocol.refusal_if_expired(command, now, received, BEHIND_A_DRIVE))
+            elif held or problem or not self.bindings.plan(applied, planned):
+                # (held and expired: the protocol refuses it, saying what held it)
                 self._run(self.protocol.receive_command(command, now, received))
             else:
                 self._drive((command, received), applied, planned)
+
+    def _expire_behind_the_drive(self, now: float) -> None:
+        """Refuse, at their deadline, the commands waiting while a command's parameters
+        and lifecycle states are being set (each of those calls may take seconds)."""
+        kept: deque[tuple[ActivationCommand, float]] = deque()
+        for command, received in self._commands:
+            refusal = self.protocol.refusal_if_expired(command, now, received, BEHIND_A_DRIVE)
+            if refusal:
+                self._run(refusal)
+            else:
+                kept.append((command, received))
+        self._commands = kept
 
     def _atomic_refusal(self, planned: tuple[str, ...]) -> str:
         """Why an atomic command that would change ROS parameters or lifecycle states is
@@ -556,7 +570,10 @@ class LayerManagerNode(Node):
                 self._commands.appendleft(queued)
             else:
                 # Received when it arrived: the binding phase is part of its `elapsed`.
-                self._run(self.protocol.receive_command(command, time.monotonic(), received))
+                # Started before its deadline: carried through, whenever the drive ended
+                # (refused now, ROS would go there and back).
+                now = time.monotonic()
+                self._run(self.protocol.receive_command(command, now, received, started=True))
         # Waiting commands first: a failed reconcile must not starve them (each of its
         # tries may take seconds), and one whose plan reaches its target heals it anyway.
         self._next_command()

@@ -85,6 +85,22 @@ def test_a_command_still_waiting_at_its_deadline_is_refused_never_executed() -> 
     assert all("Night" not in s.active for s in states(after))
 
 
+def test_a_command_whose_ros_side_started_in_time_is_carried_through_past_its_deadline() -> None:
+    """The adapter set its parameters (seconds) and hands it on after its deadline: refused
+    now, ROS would go there and back. One it kept waiting is refused saying for what."""
+    manager = ManagerProtocol(0.0, SETTINGS)
+    manager.receive_status(report("/a"), 0.0)
+    manager.tick(1.0)
+    command = ActivationCommand(1, ("Night",), timeout=1.0)
+    actions = manager.receive_command(command, now=4.0, received=1.1, started=True)
+    assert [s.active for s in states(actions)] == [("Night",)]
+    assert replies(actions)[1].success
+    kept = ActivationCommand(2, ("Day",), timeout=1.0)
+    assert manager.refusal_if_expired(kept, 1.5, 1.1, "behind a drive") == []
+    refused = replies(manager.refusal_if_expired(kept, 2.2, 1.1, "behind a drive"))[2]
+    assert not refused.success and "(behind a drive); nothing changed" in refused.message
+
+
 def test_an_abort_names_every_node_that_says_no() -> None:
     manager = ManagerProtocol(0.0, SETTINGS)
     for node in ("/a", "/b", "/c"):

@@ -37,15 +37,21 @@ class CommandQueue(ManagerBase):
         return waiting + len(self._behind_transaction) + (self._transaction is not None)
 
     def _expired(
-        self, command: ActivationCommand, now: float, received: float
+        self,
+        command: ActivationCommand,
+        now: float,
+        received: float,
+        waiting_for: str | None = None,
     ) -> list[ManagerAction]:
-        """The refusal of `command` if its deadline passed while it waited, else []."""
+        """The refusal of `command` if its deadline passed while it waited, else [];
+        `waiting_for` says what it waited for (default: what the protocol holds it for)."""
         deadline = self._deadline(command, received)
         if now < deadline:
             return []
+        why = waiting_for or self._waiting_for()
         message = (
             f"not started within the command's timeout ({deadline - received:g} s): it waited "
-            f"{now - received:.1f} s in the manager ({self._waiting_for()}); nothing changed"
+            f"{now - received:.1f} s in the manager ({why}); nothing changed"
         )
         result = ActivationResult(
             False, message, self._state.epoch, self._state.active, elapsed=now - received
@@ -73,9 +79,9 @@ class CommandQueue(ManagerBase):
         return actions
 
     def _execute(
-        self, command: ActivationCommand, now: float, received: float
+        self, command: ActivationCommand, now: float, received: float, started: bool = False
     ) -> list[ManagerAction]:
-        if refusal := self._expired(command, now, received):
+        if not started and (refusal := self._expired(command, now, received)):
             return refusal
         if self._transaction is not None:
             # One decision at a time: what others ask waits for the vote's outcome.

@@ -76,11 +76,18 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         return True
 
     def receive_command(
-        self, command: ActivationCommand, now: float, received: float | None = None
+        self,
+        command: ActivationCommand,
+        now: float,
+        received: float | None = None,
+        *,
+        started: bool = False,
     ) -> list[ManagerAction]:
         """A command, received at `received` (default `now`; earlier when the adapter had
         work to do first, such as the layers' ROS side): its timeout and its answer's
-        `elapsed` count from there."""
+        `elapsed` count from there. `started`: the adapter began its work (set the
+        parameters and lifecycle states) before its deadline, so it is carried through,
+        never refused as expired: ROS has changed already."""
         self._order_cache = None
         received = now if received is None else received
         problems = command_problems(command)
@@ -100,7 +107,7 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
                 return refusal
             self._queued.append((command, received))
             return []
-        return self._execute(command, now, received)
+        return self._execute(command, now, received, started)
 
     def preview(self, command: ActivationCommand) -> tuple[str, tuple[str, ...]]:
         """What `command` would make active if it came now, changing nothing: ("", layers),
@@ -118,6 +125,13 @@ class ManagerProtocol(Registry, CommandQueue, Acknowledgements, AtomicVotes, Rec
         """Whether `command`, received at `received`, is past its deadline (its caller has
         given up): `receive_command` would refuse it, nothing changed."""
         return now >= self._deadline(command, received)
+
+    def refusal_if_expired(
+        self, command: ActivationCommand, now: float, received: float, waiting_for: str
+    ) -> list[ManagerAction]:
+        """The refusal of `command` (kept by the adapter, waiting for `waiting_for`) if its
+        deadline passed, else []."""
+        return self._expired(command, now, received, waiting_for)
 
     def would_hold(self, command: ActivationCommand, now: float) -> bool:
         """Whether `receive_command(command, now)` would keep `command` waiting rather than
