@@ -15,12 +15,14 @@ from pathlib import Path
 import pytest
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
-from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
+from rclpy.qos import qos_profile_parameter_events
 
 from contextros.recording import read_recording
 from contextros.ros import LayerClient
+from contextros.ros.topics import MANAGER_NODE_NAME
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
 from tests.ros.test_cli import contextros
@@ -259,6 +261,105 @@ def test_a_node_that_leaves_has_no_value_and_is_asked_again_when_it_returns(
         assert rules_status(gone)["Degraded"]["value"] == "no data"
         group.start("returning plain nodes", plain_nodes)
         reading("lifecycle drivers/propeller = 'unconfigured'", "asked again on its return")
+    finally:
+        group.kill_all()
+        node.destroy_node()
+
+
+def test_a_forged_parameter_event_changes_no_rule_value(client: LayerClient, system: Child) -> None:
+    """Anyone can publish on /parameter_events: the manager reads the node when an event
+    names it, and only the node's answer counts."""
+    set_max_speed(client, 2.0)
+    wait_active(client, "Night", False, "Night off with max_speed 2.0")
+    publisher = client.node.create_publisher(
+        ParameterEvent, "/parameter_events", qos_profile_parameter_events
+    )
+    try:
+        forged = ParameterEvent(
+            node="/drivers/base",
+            changed_parameters=[
+                Parameter(
+                    name="max_speed",
+                    value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.1),
+                )
+            ],
+        )
+        for _ in range(20):
+            publisher.publish(forged)
+            time.sleep(0.02)
+        time.sleep(0.5)
+        assert rules_status(client)["Careful"]["readings"] == ["param drivers/base.max_speed = 2.0"]
+        assert "Night" not in client.query().active_layers
+    finally:
+        client.node.destroy_publisher(publisher)
+
+
+# A graph rule and a binding on the same nodes, in one layer file (namespace /both).
+BOTH = """\
+parameter Slow: drivers/base max_speed = 0.3
+lifecycle Outdoor: drivers/propeller active
+rule Careful: Night while param drivers/base.max_speed > 2
+rule Dark: Gps while lifecycle drivers/propeller == inactive
+"""
+
+
+def manager_subscriptions(node: Node, topic: str) -> int:
+    return sum(
+        1
+        for info in node.get_subscriptions_info_by_topic(topic)
+        if (info.node_namespace, info.node_name) == ("/both", MANAGER_NODE_NAME)
+    )
+
+
+def test_rules_and_bindings_share_one_subscription_per_topic_and_both_work(
+    client: LayerClient, tmp_path: Path
+) -> None:
+    layers = tmp_path / "robot.layers"
+    layers.write_text(BOTH, encoding="utf-8")
+    group = ProcessGroup()
+    node = Node("graph_rules_shared_client", namespace="/both")
+    both = LayerClient(node, requester="pytest")
+    try:
+        group.start(
+            "both plain nodes",
+            [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/both/drivers"],
+        )
+        group.participant("g4", "--ros-args", "-r", "__ns:=/both")
+        group.manager("--layers", str(layers), "--ros-args", "-r", "__ns:=/both")
+        both.wait_for_manager(15.0)
+        wait_registry(both, lambda r: any(p.node == "/both/g4" for p in r.participants))
+        result = both.request(["Slow", "Outdoor"], synchronous=True, timeout=5)
+        assert result.success, result.message
+        wait_registry(
+            both,
+            lambda r: (
+                all(b.holds for b in r.bindings)
+                and any(rule.readings == ["param drivers/base.max_speed = 0.3"] for rule in r.rules)
+            ),
+            10.0,
+            "the bindings holding and the rule reading what they set",
+        )
+        topics = ("/parameter_events", "/both/drivers/propeller/transition_event")
+        time.sleep(0.5)  # (discovery of the manager's endpoints)
+        assert [manager_subscriptions(node, topic) for topic in topics] == [1, 1]
+        # Another client sets max_speed and deactivates the propeller: the bindings drift
+        # and the rules fire, from the same reads.
+        set_max_speed(both, 3.0, "/both/drivers/base")
+        deactivate = ChangeState.Request(transition=Transition(id=Transition.TRANSITION_DEACTIVATE))
+        assert call(both, ChangeState, "/both/drivers/propeller/change_state", deactivate).success
+        registry = wait_registry(
+            both,
+            lambda r: (
+                {"Night", "Gps"} <= set(r.active_layers) and all(b.drifted for b in r.bindings)
+            ),
+            10.0,
+            "Night and Gps from the rules, both bindings drifted",
+            show=group.children,
+        )
+        assert sorted((b.layer, b.observed) for b in registry.bindings) == [
+            ("Outdoor", "inactive"),
+            ("Slow", "3"),
+        ]
     finally:
         group.kill_all()
         node.destroy_node()
