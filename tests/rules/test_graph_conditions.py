@@ -3,6 +3,7 @@ their syntax and errors, the engine fed their values, contradictions, untrusted 
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -10,7 +11,14 @@ import pytest
 from contextros.language.diagnostics import LayerSyntaxError
 from contextros.language.rules import GraphRef, condition_text
 from contextros.rules import Rule, RuleEngine, RuleSet
-from contextros.rules.graph import MAX_STRING, GraphInput, GraphInputs, graph_topics, resolve_name
+from contextros.rules.graph import (
+    MAX_STRING,
+    GraphInput,
+    GraphInputs,
+    answers_each_event,
+    graph_topics,
+    resolve_name,
+)
 
 
 def ruleset(*rules: tuple[str, str]) -> RuleSet:
@@ -364,3 +372,75 @@ def test_contextros_check_reports_graph_rule_errors_and_contradictions(tmp_path)
         f"{bad}:8:62: error: unknown lifecycle state 'activ' (did you mean active?)" in done.stdout
     )
     assert f"{bad}:11:34: error: 'param max_speed' names no node" in done.stdout
+
+
+def test_the_live_manager_reads_answers_only_and_knows_stamped_ones() -> None:
+    """The manager takes values from the nodes' answers (events are hints it reads the
+    node on); a recorded answer stamped with its read's time says the recording has them."""
+    graph = GraphInputs(
+        ruleset(("S", "Careful while param controller.max_speed < 0.5")).rules,
+        lambda name: resolve_name("/robot", name),
+        events=False,
+    )
+    assert graph.channels() == ("/robot/controller/get_parameters",)
+    speed = parameter("max_speed", 3, double_value=0.3)
+    assert graph.read("/parameter_events", event("/robot/controller", new=[speed])) is None
+    answer = event("/robot/controller", new=[speed])
+    assert not answers_each_event("/robot/controller/get_parameters", answer)
+    answer.stamp = SimpleNamespace(sec=1795759629, nanosec=0)
+    assert answers_each_event("/robot/controller/get_parameters", answer)
+    state = SimpleNamespace(goal_state=SimpleNamespace(id=3), timestamp=0)
+    assert not answers_each_event("/robot/propeller/get_state", state)
+    state.timestamp = 1795759629000000000
+    assert answers_each_event("/robot/propeller/get_state", state)
+    assert not answers_each_event("/robot/propeller/transition_event", state)
+
+
+def graph_recording(path: Path, stamped: bool) -> Path:
+    """An answer of /controller (max_speed 1.0) at 100 s, an event saying 0.3 at 101 s and
+    an answer saying 0.3 at 102 s, by a recorder that stamps its answers or not."""
+    from mcap_ros2.writer import Writer
+
+    from contextros.recording.definitions import message_definition
+
+    kind = "rcl_interfaces/msg/ParameterEvent"
+    with path.open("wb") as stream:
+        writer = Writer(stream)
+        schema = writer.register_msgdef(kind, message_definition(kind))
+        for second, topic, value in [
+            (100, "/controller/get_parameters", 1.0),
+            (101, "/parameter_events", 0.3),
+            (102, "/controller/get_parameters", 0.3),
+        ]:
+            answer = topic.endswith("get_parameters")
+            message = {
+                "stamp": {"sec": second if stamped and answer else 0, "nanosec": 0},
+                "node": "/controller",
+                "new_parameters" if answer else "changed_parameters": [
+                    {"name": "max_speed", "value": {"type": 3, "double_value": value}}
+                ],
+            }
+            writer.write_message(topic, schema, message, log_time=second * 10**9)
+        writer.finish()
+    return path
+
+
+@pytest.mark.parametrize(("stamped", "switched_at"), [(False, 1.0), (True, 2.0)])
+def test_the_replay_takes_events_as_values_only_in_recordings_without_stamped_answers(
+    tmp_path: Path, stamped: bool, switched_at: float
+) -> None:
+    """A recording made before the manager read nodes after each event (or by another
+    tool) replays as then: its events are values. One with stamped answers replays as the
+    manager runs now: the event is a hint, the answer after it the value."""
+    import json
+
+    pytest.importorskip("mcap_ros2")
+    from tests.recording.test_reader import replay
+
+    recording = graph_recording(tmp_path / "graph.mcap", stamped)
+    rules = tmp_path / "robot.layers"
+    rules.write_text("rule S: Careful while param controller.max_speed < 0.5\n", encoding="utf-8")
+    done = replay(recording, rules, "--json")
+    assert done.returncode == 0, done.stderr
+    switches = json.loads(done.stdout)["switches"]
+    assert [(s["time"], s["active"]) for s in switches] == [(switched_at, ["Careful"])]
