@@ -174,6 +174,11 @@ class _DeferredResponses:
         if header is not None:  # else the executor has not sent it yet: it will, filled in
             self._send_safely(response, header)
 
+    def answer_all(self, result: Any) -> None:
+        """Answer every request still awaited with `result` (the manager stops)."""
+        for request_id in list(self._open):
+            self.answer(request_id, result)
+
     def _send_or_hold(self, response: Any, header: Any) -> None:
         request_id = self._ids.get(id(response))
         if request_id is None:
@@ -382,6 +387,18 @@ class LayerManagerNode(Node):
             )
             self._flush_logs()  # the states it published, before it says why it stops
             self.log.error(self.stepped_down)
+            # Its callers hear why now, not at their deadline (an unsettled command's state
+            # may be out: `status`, asked of the manager that stays, says).
+            state = self.protocol.state
+            self._responses.answer_all(
+                ActivationResult(
+                    False,
+                    f"the Layer manager stopped before deciding this command: {rival}; "
+                    "whether a state it published is applied is unknown (`contextros status`)",
+                    state.epoch,
+                    state.active,
+                )
+            )
         elif other not in self._rivals_logged:
             self._rivals_logged.add(other)
             self.log.error(f"{rival}; it steps down, this manager ({self.manager_id}) stays")
