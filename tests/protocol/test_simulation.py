@@ -20,7 +20,7 @@ from contextros.protocol.invariants import (
     PROPOSAL_EPOCHS,
     SYNC_NAMES_KNOWN,
 )
-from contextros.protocol.manager import ManagerProtocol
+from contextros.protocol.manager import ManagerProtocol, ManagerSettings
 from contextros.protocol.simulation import (
     Faults,
     InvariantViolation,
@@ -51,6 +51,21 @@ def test_a_sweep_of_seeds_keeps_every_guarantee(seed: int) -> None:
 @pytest.mark.parametrize("seed", range(100, 120))
 def test_harsh_faults_keep_every_guarantee(seed: int) -> None:
     simulate(Scenario(SMALL, seed, faults=HARSH))
+
+
+# Issue 26: six participants at 8 statuses per second make the manager ask for a 0.94 s
+# heartbeat and a 11.25 s bound: the period it announces, and participants still on the
+# old one, under every fault (restarts start at 0.25 s, partitions, loss).
+SLOWER = ManagerSettings(status_rate=8.0)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_a_longer_heartbeat_period_keeps_every_guarantee(seed: int) -> None:
+    report = simulate(Scenario(SMALL, seed, settings=SLOWER))
+    assert report.status_period == pytest.approx(1.25 * SMALL / 8.0)
+    assert report.liveness_bound == pytest.approx(3.0 * report.status_period / 0.25)
+    assert report.status_period < report.detection_time <= report.liveness_bound + 0.06
+    assert report.time_to_converge <= report.scenario.converge_within
 
 
 def test_a_seed_replays_exactly_and_seeds_differ() -> None:
