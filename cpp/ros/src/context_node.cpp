@@ -31,6 +31,9 @@ struct SharedParticipant {
   std::vector<StateListener> listeners;
   std::vector<ManagerListener> manager_listeners;
   std::vector<Veto> vetoes;
+  // The carrier left and its participant is being closed: the next node takes over from
+  // it (its protocol), so a node joining meanwhile only joins `members`.
+  bool handing_over = false;
 
   // `previous`: the protocol of the participant this one replaces, if any.
   void carry_by_first(const ParticipantProtocol* previous = nullptr) {
@@ -78,10 +81,10 @@ ContextNode::ContextNode(rcl_node_t& node, ParticipantOptions options) : node_(&
   std::lock_guard<std::mutex> lock(process.mutex);
   process.members.push_back(Member{&node, rcl_node_get_fully_qualified_name(&node), options});
   try {
-    if (!process.participant) {
-      process.carry_by_first();
-    } else {
+    if (process.participant) {
       process.participant->host(process.members.back().name, options.layers);
+    } else if (!process.handing_over) {
+      process.carry_by_first();
     }
   } catch (...) {
     process.members.pop_back();
@@ -109,6 +112,7 @@ ContextNode::~ContextNode() {
       return;
     }
     leaving = std::move(process.participant);
+    process.handing_over = leaving != nullptr;
   }
   std::optional<ParticipantProtocol> previous;
   if (leaving) {
@@ -117,6 +121,7 @@ ContextNode::~ContextNode() {
   // Destroyed without the lock: its thread may be in a listener that takes it.
   leaving.reset();  // leaves
   std::lock_guard<std::mutex> lock(process.mutex);
+  process.handing_over = false;
   if (!process.participant && !process.members.empty()) {
     try {
       // The next node of the process takes over, from where the process stands.
