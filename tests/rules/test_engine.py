@@ -175,3 +175,18 @@ def test_a_report_names_why_a_rule_is_off() -> None:
     assert report.value_text == "off"
     assert report.error is not None and "percentage" in report.error
     assert report.readings[0][1] == "unreadable (AttributeError)"
+
+
+def test_a_long_condition_is_cut_to_a_reason_the_manager_takes_keeping_its_place() -> None:
+    """A command's reason is at most 1024 characters (protocol/validation.py): a rule with
+    a longer condition used to fire commands the manager refused, every time."""
+    from contextros.protocol import ActivationCommand
+    from contextros.protocol.validation import MAX_TEXT_LENGTH, command_problems
+
+    condition = " or ".join(f"battery.percentage < {n}" for n in range(60))
+    rules = engine(("Low", f"LowBattery while {condition}"))
+    (firing,) = [f for f in rules.on_message("battery", battery(10), 0.0)]
+    assert len(firing.reason) <= MAX_TEXT_LENGTH < len(condition)
+    assert firing.reason.endswith("... (<rules>:1)"), firing.reason[-40:]
+    command = ActivationCommand(-1, firing.activate, reason=firing.reason, synchronous=True)
+    assert command_problems(command) == []

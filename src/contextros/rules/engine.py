@@ -25,6 +25,7 @@ from contextros.language.rules import (
     condition_text,
     relaxed,
 )
+from contextros.protocol.validation import MAX_TEXT_LENGTH
 from contextros.rules.contradictions import Relations as Relations  # (firings.py)
 from contextros.rules.ruleset import RuleSet
 
@@ -249,7 +250,11 @@ class _RuleState:
         rule = self.rule
         held = f" for {rule.hold:g} s" if rule.hold else ""
         truth = f"{self.text}{held}" if holds else f"not ({self.text}){held}"
-        reason = f"{truth} ({self.where})"
+        # A command's reason is at most MAX_TEXT_LENGTH characters: a long condition is
+        # cut, never the place it is declared.
+        place = f" ({self.where})"
+        room = MAX_TEXT_LENGTH - len(place)
+        reason = (truth if len(truth) <= room else truth[: room - 3] + "...") + place
         layer = rule.layer.name
         if rule.mode == "activate":
             return Firing(rule.name, (layer,), (), reason, self.priority) if holds else None
