@@ -139,27 +139,34 @@ def test_a_forged_parameter_event_is_checked_on_the_node(
     """Anyone can publish on /parameter_events: the manager reads the node before it
     believes a change, so a forged event makes no drift (and sets nothing back)."""
     settle(client, "Night")
+    seen = len(manager(system).lines)
+    publish_forged_max_speed(client, "/base", 7.0)
+    night = binding(client.query(), "Night")
+    assert night.holds and not night.drifted and night.observed == "0.5"
+    assert not [line for line in manager(system).lines[seen:] if "back to" in line]
+
+
+def publish_forged_max_speed(client: LayerClient, node: str, value: float) -> None:
+    """Say 20 times on /parameter_events, as any process can, that `node`'s max_speed is
+    `value` (it is not); then leave the subscribers half a second."""
     publisher = client.node.create_publisher(
         ParameterEvent, "/parameter_events", qos_profile_parameter_events
     )
     try:
         forged = ParameterEvent(
-            node="/base",
+            node=node,
             changed_parameters=[
                 Parameter(
                     name="max_speed",
-                    value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=7.0),
+                    value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=value),
                 )
             ],
         )
-        eventually(lambda: publisher.get_subscription_count() > 0, "the manager subscribed")
-        seen = len(manager(system).lines)
+        eventually(lambda: publisher.get_subscription_count() > 0, "a subscriber")
         for _ in range(20):
             publisher.publish(forged)
+            time.sleep(0.02)
         time.sleep(0.5)
-        night = binding(client.query(), "Night")
-        assert night.holds and not night.drifted and night.observed == "0.5"
-        assert not [line for line in manager(system).lines[seen:] if "back to" in line]
     finally:
         client.node.destroy_publisher(publisher)
 

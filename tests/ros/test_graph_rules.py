@@ -15,10 +15,9 @@ from pathlib import Path
 import pytest
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
-from rcl_interfaces.msg import Parameter, ParameterEvent, ParameterType, ParameterValue
+from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
 from rcl_interfaces.srv import SetParameters
 from rclpy.node import Node
-from rclpy.qos import qos_profile_parameter_events
 
 from contextros.recording import read_recording
 from contextros.ros import LayerClient
@@ -26,6 +25,7 @@ from contextros.ros.topics import MANAGER_NODE_NAME
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
 from tests.ros.test_cli import contextros
+from tests.ros.test_drift import publish_forged_max_speed
 from tests.ros.test_ros_bindings import call
 
 # The plain nodes run in /drivers (`/drivers/base`, `/drivers/propeller`), the manager in
@@ -234,14 +234,20 @@ def test_a_recording_replays_the_graph_rules_decisions(client: LayerClient, tmp_
     assert report["differences"] == [], report
 
 
+def namespaced(
+    tmp_path: Path, layers: str, namespace: str
+) -> tuple[Path, ProcessGroup, Node, LayerClient]:
+    """A layer file holding `layers`, a process group, and a client node in `namespace`."""
+    path = tmp_path / "robot.layers"
+    path.write_text(layers, encoding="utf-8")
+    node = Node(f"graph_rules_client{namespace.replace('/', '_')}", namespace=namespace)
+    return path, ProcessGroup(), node, LayerClient(node, requester="pytest")
+
+
 def test_a_node_that_leaves_has_no_value_and_is_asked_again_when_it_returns(
     client: LayerClient, tmp_path: Path
 ) -> None:
-    rules = tmp_path / "robot.layers"
-    rules.write_text(RULES, encoding="utf-8")
-    group = ProcessGroup()
-    node = Node("graph_rules_leaving_client", namespace="/gone")
-    gone = LayerClient(node, requester="pytest")
+    rules, group, node, gone = namespaced(tmp_path, RULES, "/gone")
     plain_nodes = [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/gone/drivers"]
 
     def reading(expected: str, what: str) -> None:
@@ -271,27 +277,9 @@ def test_a_forged_parameter_event_changes_no_rule_value(client: LayerClient, sys
     names it, and only the node's answer counts."""
     set_max_speed(client, 2.0)
     wait_active(client, "Night", False, "Night off with max_speed 2.0")
-    publisher = client.node.create_publisher(
-        ParameterEvent, "/parameter_events", qos_profile_parameter_events
-    )
-    try:
-        forged = ParameterEvent(
-            node="/drivers/base",
-            changed_parameters=[
-                Parameter(
-                    name="max_speed",
-                    value=ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=0.1),
-                )
-            ],
-        )
-        for _ in range(20):
-            publisher.publish(forged)
-            time.sleep(0.02)
-        time.sleep(0.5)
-        assert rules_status(client)["Careful"]["readings"] == ["param drivers/base.max_speed = 2.0"]
-        assert "Night" not in client.query().active_layers
-    finally:
-        client.node.destroy_publisher(publisher)
+    publish_forged_max_speed(client, "/drivers/base", 0.1)
+    assert rules_status(client)["Careful"]["readings"] == ["param drivers/base.max_speed = 2.0"]
+    assert "Night" not in client.query().active_layers
 
 
 # A graph rule and a binding on the same nodes, in one layer file (namespace /both).
@@ -314,11 +302,7 @@ def manager_subscriptions(node: Node, topic: str) -> int:
 def test_rules_and_bindings_share_one_subscription_per_topic_and_both_work(
     client: LayerClient, tmp_path: Path
 ) -> None:
-    layers = tmp_path / "robot.layers"
-    layers.write_text(BOTH, encoding="utf-8")
-    group = ProcessGroup()
-    node = Node("graph_rules_shared_client", namespace="/both")
-    both = LayerClient(node, requester="pytest")
+    layers, group, node, both = namespaced(tmp_path, BOTH, "/both")
     try:
         group.start(
             "both plain nodes",
