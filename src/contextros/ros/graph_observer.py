@@ -14,7 +14,8 @@ lifecycle node's `NODE/transition_event`) and one reader per node and service (`
   transition then; seen as new event publishers), once its events reach the observer (a change
   between the answer and the first event heard would be lost), then after each event;
 - an event that comes while a request is out makes the answer suspect (it may be older than
-  the change): it is dropped and the node asked again;
+  the change): it is dropped and the node asked again (MAX_DROPPED times in a row at most:
+  then it is taken and the node read again, so a flood of events cannot hold values back);
 - a request unanswered after REQUEST_TIMEOUT is sent again; a node that leaves the graph is
   handed on as absent (`NodeRead.absent`).
 
@@ -52,6 +53,9 @@ TRANSITION_QOS = QoSProfile(
 SERVICE_GRACE = 3.0
 # Seconds before an unanswered request is sent again (an answer lost, a node restarting).
 REQUEST_TIMEOUT = 2.0
+# Answers dropped in a row because events kept coming meanwhile, at most: then one is taken
+# (and the node read again), so a flood of events, forged or not, cannot hold a value back.
+MAX_DROPPED = 3
 # What one event is looked at for at most (anyone can publish one).
 MAX_NODE_NAME = 256
 MAX_PARAMETERS_PER_EVENT = 64
@@ -90,6 +94,7 @@ class _Reader:
         self.pending: Any = None  # the request's future
         self.sent = 0.0
         self.stale = False  # an event came while the request was out: ask again
+        self.dropped = 0  # answers dropped in a row for that
         self.logged_missing = False
 
 
@@ -260,11 +265,16 @@ class GraphObserver:
         if reader.pending is not future:
             return  # superseded (sent again, or the node left)
         reader.pending = None
-        if reader.stale or future.cancelled() or future.exception() is not None:
+        failed = future.cancelled() or future.exception() is not None
+        if failed or (reader.stale and reader.dropped < MAX_DROPPED):
+            reader.dropped += not failed
             reader.wanted = True
             if reader.fqn in self._present and reader.client.service_is_ready():
                 self._ask(reader, time.monotonic())
             return
+        if reader.stale:  # (events keep coming: this answer, then another read)
+            reader.wanted = True
+        reader.dropped = 0
         response = future.result()
         wall = time.time()
         if reader.channel.endswith(f"/{GET_STATE}"):
@@ -287,6 +297,8 @@ class GraphObserver:
         noticed = reader.noticed if reader.noticed is not None else wall
         reader.noticed = None
         self._deliver(NodeRead(reader.channel, reader.fqn, message, asked, noticed))
+        if reader.wanted and reader.client.service_is_ready():
+            self._ask(reader, time.monotonic())
 
     def _absent(self, reader: _Reader, now: float) -> None:
         reader.pending, reader.logged_missing, reader.wanted = None, False, True
