@@ -55,7 +55,14 @@ from contextros.protocol.events import (
     PublishState,
     PublishStatus,
 )
-from contextros.protocol.invariants import ALL, KNOWN_BROKEN, Invariants, InvariantViolation
+from contextros.protocol.invariants import (
+    ALL,
+    KNOWN_BROKEN,
+    Invariants,
+    InvariantViolation,
+    add_check_all_option,
+    checked_invariants,
+)
 from contextros.protocol.manager import ManagerProtocol, ManagerSettings
 from contextros.protocol.participant import ParticipantProtocol
 from contextros.protocol.simulation import LAYERS
@@ -500,18 +507,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--depth", type=int, default=6)
     parser.add_argument("--node-crashes", type=int, default=1)
     parser.add_argument("--manager-restarts", type=int, default=1)
-    parser.add_argument(
-        "--check-all",
-        action="store_true",
-        help=f"check also what the protocol is known to break ({', '.join(sorted(KNOWN_BROKEN))})",
-    )
+    add_check_all_option(parser)
     args = parser.parse_args(argv)
     bounds = Bounds(
         participants=args.participants,
         depth=args.depth,
         node_crashes=args.node_crashes,
         manager_restarts=args.manager_restarts,
-        checked=ALL if args.check_all else ALL - KNOWN_BROKEN,
+        checked=checked_invariants(args.check_all),
     )
     result = explore(bounds)
     print(result.summary())

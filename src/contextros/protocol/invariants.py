@@ -14,6 +14,7 @@ state): a history, not a model of the protocol.
 
 from __future__ import annotations
 
+import argparse
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -77,6 +78,22 @@ ALL = frozenset(
 # Nothing since a node remembers the newest proposal it voted on per manager (issue 24 item
 # 4: a late copy of an older proposal was voted on, and its vetoes asked, again).
 KNOWN_BROKEN: frozenset[str] = frozenset()
+
+
+def add_check_all_option(parser: argparse.ArgumentParser) -> None:
+    """`--check-all` for a command running the protocol (simulation, explorer)."""
+    known = ", ".join(sorted(KNOWN_BROKEN)) or "nothing at present"
+    parser.add_argument(
+        "--check-all",
+        action="store_true",
+        help=f"check also what the protocol is known to break ({known})",
+    )
+
+
+def checked_invariants(check_all: bool) -> frozenset[str]:
+    """The invariants a run checks: all, or all but the known broken ones."""
+    return ALL if check_all else ALL - KNOWN_BROKEN
+
 
 # How an answer says which proposed epoch an atomic activation aborted.
 _ABORTED = re.compile(r"atomic activation of epoch (\d+) aborted")

@@ -61,6 +61,8 @@ from contextros.protocol.invariants import (
     ALL,
     KNOWN_BROKEN,
     Invariants,
+    add_check_all_option,
+    checked_invariants,
 )
 from contextros.protocol.invariants import (
     InvariantViolation as InvariantViolation,  # raised by `simulate`
@@ -620,11 +622,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--crashes", type=int, default=Faults.crashes)
     parser.add_argument("--partitions", type=int, default=Faults.partitions)
     parser.add_argument("--manager-restarts", type=int, default=Faults.manager_restarts)
-    parser.add_argument(
-        "--check-all",
-        action="store_true",
-        help=f"check also what the protocol is known to break ({', '.join(sorted(KNOWN_BROKEN))})",
-    )
+    add_check_all_option(parser)
     args = parser.parse_args(argv)
     faults = Faults(
         loss=args.loss,
@@ -636,7 +634,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     failed = 0
     for seed in range(args.seed, args.seed + args.seeds):
         try:
-            checked = ALL if args.check_all else ALL - KNOWN_BROKEN
+            checked = checked_invariants(args.check_all)
             report = simulate(Scenario(args.participants, seed, faults=faults, checked=checked))
         except InvariantViolation as violation:
             print(f"FAILED {violation}", file=sys.stderr)
