@@ -117,7 +117,8 @@ class GraphObserver:
         self._subscriptions: dict[str, Any] = {}  # topic -> subscription
         self._present: set[str] = set()
         self._since: dict[str, float] = {}  # node -> when it appeared (monotonic)
-        self._publishers: dict[str, set[bytes]] = {}  # events topic -> node's publisher gids
+        # Reader's channel -> its node's publishers of events (gids) at the last poll.
+        self._publishers: dict[str, set[bytes]] = {}
         self._timer = node.create_timer(period, self.poll)
 
     # -- what to follow, and who hears --------------------------------------------------
@@ -131,7 +132,7 @@ class GraphObserver:
             topic = f"{fqn}/{TRANSITION_EVENT}"
             if topic not in self._subscriptions:
                 self._subscriptions[topic] = self.node.create_subscription(
-                    TransitionEvent, topic, lambda _, n=fqn: self._event(n, None), TRANSITION_QOS
+                    TransitionEvent, topic, lambda _, n=fqn: self._transition(n), TRANSITION_QOS
                 )
             self._reader(fqn, GET_STATE, GetState, topic)
         for fqn, names in (parameters or {}).items():
@@ -157,9 +158,6 @@ class GraphObserver:
         for reader in self._readers.values():
             if reader.fqn == fqn:
                 self._hint(reader)
-
-    def nodes(self) -> tuple[str, ...]:
-        return tuple(dict.fromkeys(reader.fqn for reader in self._readers.values()))
 
     def _reader(self, fqn: str, service: str, service_type: Any, events: str) -> _Reader:
         channel = f"{fqn}/{service}"
@@ -187,7 +185,7 @@ class GraphObserver:
         if any(name in reader.names for name in named):
             self._hint(reader)
 
-    def _event(self, fqn: str, _: Any) -> None:
+    def _transition(self, fqn: str) -> None:
         reader = self._readers.get(f"{fqn}/{GET_STATE}")
         if reader is not None:
             self._hint(reader)
@@ -256,6 +254,8 @@ class GraphObserver:
             request: Any = GetState.Request()
         else:
             request = GetParameters.Request(names=list(reader.names))
+        if reader.pending is not None:  # unanswered: forgotten
+            reader.client.remove_pending_request(reader.pending)
         reader.sent, reader.stale, reader.wanted = now, False, False
         future = reader.client.call_async(request)
         reader.pending = future
@@ -265,9 +265,11 @@ class GraphObserver:
         if reader.pending is not future:
             return  # superseded (sent again, or the node left)
         reader.pending = None
-        failed = future.cancelled() or future.exception() is not None
-        if failed or (reader.stale and reader.dropped < MAX_DROPPED):
-            reader.dropped += not failed
+        if future.cancelled() or future.exception() is not None:
+            reader.wanted = True  # (asked again at the next poll)
+            return
+        if reader.stale and reader.dropped < MAX_DROPPED:
+            reader.dropped += 1
             reader.wanted = True
             if reader.fqn in self._present and reader.client.service_is_ready():
                 self._ask(reader, time.monotonic())
@@ -301,6 +303,8 @@ class GraphObserver:
             self._ask(reader, time.monotonic())
 
     def _absent(self, reader: _Reader, now: float) -> None:
+        if reader.pending is not None:
+            reader.client.remove_pending_request(reader.pending)
         reader.pending, reader.logged_missing, reader.wanted = None, False, True
         self._publishers.pop(reader.channel, None)
         wall = time.time()
