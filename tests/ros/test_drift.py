@@ -8,6 +8,7 @@ import json
 import signal
 import time
 from collections.abc import Callable, Iterator
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -39,15 +40,24 @@ def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Ite
     layers.write_text(LAYERS, encoding="utf-8")
     group = ProcessGroup()
     try:
-        plain = group.start("plain nodes", [str(HERE / "plain_nodes_process.py")])
-        group.participant("d1")
-        group.manager("--liveness-timeout", LIVENESS, "--layers", str(layers))
-        plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
-        client.wait_for_manager(15.0)
-        wait_registry(client, lambda r: any(p.node == "/d1" for p in r.participants))
+        start_system(group, client, layers, "d1")
         yield group
     finally:
         group.kill_all()
+
+
+def start_system(
+    group: ProcessGroup, client: LayerClient, layers: Path, participant: str, *plain: str
+) -> Child:
+    """The plain nodes (`plain`: their arguments), a participant and a manager of `layers`
+    in `group`, each up; the manager."""
+    nodes = group.start("plain nodes", [str(HERE / "plain_nodes_process.py"), *plain])
+    group.participant(participant)
+    manager = group.manager("--liveness-timeout", LIVENESS, "--layers", str(layers))
+    nodes.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
+    client.wait_for_manager(15.0)
+    wait_registry(client, lambda r: any(p.node == f"/{participant}" for p in r.participants))
+    return manager
 
 
 def manager(system: ProcessGroup) -> Child:

@@ -25,7 +25,7 @@ from contextros.ros.topics import MANAGER_NODE_NAME
 from tests.ros.processes import HERE, Child, ProcessGroup
 from tests.ros.system import LIVENESS, wait_registry
 from tests.ros.test_cli import contextros
-from tests.ros.test_drift import publish_forged_max_speed
+from tests.ros.test_drift import publish_forged_max_speed, start_system
 from tests.ros.test_ros_bindings import call
 
 # The plain nodes run in /drivers (`/drivers/base`, `/drivers/propeller`), the manager in
@@ -43,16 +43,7 @@ def system(client: LayerClient, tmp_path_factory: pytest.TempPathFactory) -> Ite
     rules.write_text(RULES, encoding="utf-8")
     group = ProcessGroup()
     try:
-        plain = group.start(
-            "plain nodes",
-            [str(HERE / "plain_nodes_process.py"), "--ros-args", "-r", "__ns:=/drivers"],
-        )
-        group.participant("g1")
-        manager = group.manager("--liveness-timeout", LIVENESS, "--rules", str(rules))
-        plain.wait_for(lambda events: any(e["event"] == "ready" for e in events), 15, "ready")
-        client.wait_for_manager(15.0)
-        wait_registry(client, lambda r: any(p.node == "/g1" for p in r.participants))
-        yield manager
+        yield start_system(group, client, rules, "g1", "--ros-args", "-r", "__ns:=/drivers")
     finally:
         group.kill_all()
 
