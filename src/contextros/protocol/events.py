@@ -181,4 +181,5 @@ ManagerAction = (
 ParticipantAction = ApplyState | PublishStatus | StateRejected | ManagerLost | ManagerFound
 # The manager's actions before which an adapter writes its memory (`ManagerMemory`) to its
 # state file, if it changed: the same list for the ROS adapter and the explorer's model.
-DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped)
+# (A reply too: a command that marks an implied layer as asked for publishes nothing.)
+DURABLE = (PublishState, PublishProposal, ParticipantJoined, ParticipantDropped, Reply)

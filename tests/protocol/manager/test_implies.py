@@ -292,3 +292,21 @@ def test_implies_from_the_network_is_checked_like_every_relation() -> None:
     protocol.receive_status(ParticipantReport("/evil", "1", layers=(bad,)), 2.0)
     assert "Flight" in protocol.declarations() and protocol.state.epoch == epoch
     assert protocol.declarations()["Flight"].implies == {"Propulsion", "CameraHigh"}
+
+
+def test_an_explicit_mark_that_publishes_nothing_is_written_before_its_answer() -> None:
+    """`activate Flight` while Mission implies it: "no change" on the wire, but Flight is now
+    asked for on its own. A newcomer killed the manager after that answer: the state file
+    still said only Mission, and the restarted manager dropped Flight with Mission."""
+    from contextros.protocol.adapter_model import state_file
+
+    protocol = manager(*DRONE)
+    run(protocol, "Mission")
+    saved = protocol.memory()
+    actions = protocol.receive_command(ActivationCommand(2, activate=("Flight",)), 2.0)
+    assert not any(isinstance(a, PublishState) for a in actions), "nothing published"
+    written = state_file(saved, protocol, actions)
+    assert written is not None and set(written.explicit or ()) == {"Mission", "Flight"}
+    restarted = manager(*DRONE, memory=ManagerMemory.from_json(written.to_json()))
+    active, _, _ = run(restarted, deactivate="Mission")
+    assert active == ("CameraHigh", "Propulsion", "Flight")
