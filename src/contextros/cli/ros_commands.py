@@ -662,9 +662,16 @@ def _watch(args: argparse.Namespace) -> int:
     watch = SwitchWatch(started=time.time())
     drifts = DriftWatch()
 
+    reader_gone: list[BrokenPipeError] = []
+
     def show(records: list[dict[str, Any]]) -> None:
-        for record in records:
-            _print_watch(args.json, record)
+        # (also called from a service answer's done callback, where rclpy would only warn
+        # about an exception: the spin ends at once instead, and the error is raised then)
+        try:
+            for record in records:
+                _print_watch(args.json, record)
+        except BrokenPipeError as error:
+            reader_gone.append(error)
 
     def on_state(msg: Any) -> None:
         show(
@@ -711,12 +718,16 @@ def _watch(args: argparse.Namespace) -> int:
     node.create_timer(0.2, on_tick)
 
     def finished() -> bool:
+        if reader_gone:
+            return True
         if not watch.finished(args.count, time.monotonic(), time.time()):
             return False
         show(watch.unsettled())
         return True
 
     spin_nodes([node], until=finished, timeout=args.duration, teardown_limit=TEARDOWN_LIMIT)
+    if reader_gone:
+        raise reader_gone[0]
     return 0
 
 
