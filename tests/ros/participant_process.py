@@ -88,7 +88,9 @@ def main() -> None:
     parser.add_argument("--manager-timeout", type=float, default=3.0)
     parser.add_argument("--stubborn", help="a layer whose on_deactivate hook always raises")
     parser.add_argument("--also", help="a second context node in this process (it is hosted)")
-    parser.add_argument("--veto", help="an application veto: refuse every proposal with this")
+    parser.add_argument(
+        "--veto", help="an application veto: refuse every proposal with this ('raise': it raises)"
+    )
     parser.add_argument("--veto-sleep", type=float, default=0.0, help="each veto call takes this")
     args = parser.parse_args(remove_ros_args(sys.argv)[1:])
     if args.stubborn:
@@ -125,6 +127,8 @@ def main() -> None:
 
         def veto(proposal: LayerState) -> str | None:
             emit("veto-called", epoch=proposal.epoch, active=list(proposal.active))
+            if args.veto == "raise":  # a veto that fails
+                raise RuntimeError("veto exploded")
             time.sleep(args.veto_sleep)
             emit("veto-answered", epoch=proposal.epoch)
             return args.veto

@@ -7,6 +7,7 @@ import re
 import signal
 import textwrap
 import threading
+import time
 from pathlib import Path
 
 from contextros.ros import LayerClient
@@ -59,6 +60,24 @@ def test_a_node_stopped_during_its_veto_waits_for_it_before_exiting(
     assert any(e["event"] == "veto-answered" for e in t1.events), t1.output()
     assert "Traceback" not in t1.output(), t1.output()
     asking.join(10)
+
+
+def test_a_veto_that_fails_says_no_and_is_logged_in_python_and_cpp(
+    client: LayerClient, processes: ProcessGroup
+) -> None:
+    """docs/cpp.md: an exception from a veto is logged (it was only in the manager's answer)."""
+    start(processes, client, {"x_py": ["--veto", "raise"]})
+    cpp = processes.cpp_participant("x_cxx", "--veto-throw", "veto exploded")
+    wait_registry(client, lambda r: len(r.participants) == 2, what="both nodes")
+    result = client.request(["Night"], atomic=True, timeout=5)
+    assert not result.success and result.not_acknowledged == ("/x_cxx", "/x_py"), result.message
+    assert "veto exploded" in result.message
+    py = next(c for c in processes.children if c.name == "x_py")
+    for node in (py, cpp):
+        deadline = time.monotonic() + 5
+        while "voting no" not in node.output() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert re.search(r"veto.*failed.*veto exploded.*voting no", node.output()), node.output()
 
 
 def test_every_node_that_says_no_is_named(client: LayerClient, processes: ProcessGroup) -> None:

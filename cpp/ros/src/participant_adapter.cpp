@@ -207,10 +207,14 @@ std::string ask_vetoes(const std::vector<Veto>& vetoes, const LayerState& propos
     std::string reason;
     try {
       reason = veto(proposal);
-    } catch (const std::exception& error) {  // a veto that fails says no
+    } catch (const std::exception& error) {  // a veto that fails says no, and is logged
       reason = std::string("a veto failed: ") + error.what();
+      RCUTILS_LOG_ERROR_NAMED("contextros", "%s (epoch %llu: voting no)", reason.c_str(),
+                              static_cast<unsigned long long>(proposal.epoch));
     } catch (...) {
       reason = "a veto failed";
+      RCUTILS_LOG_ERROR_NAMED("contextros", "a veto failed (epoch %llu: voting no)",
+                              static_cast<unsigned long long>(proposal.epoch));
     }
     if (!reason.empty()) reasons += (reasons.empty() ? "" : "; ") + reason;
   }

@@ -27,6 +27,7 @@
 #include <mutex>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <thread>
 #include <vector>
@@ -108,6 +109,7 @@ struct Options {
   std::string refuse;
   std::string also;
   double veto_sleep = -1;  // no veto
+  std::string veto_throw;   // a veto that throws this
 };
 
 std::vector<std::string> split(const std::string& text) {
@@ -136,6 +138,8 @@ Options parse(int argc, char** argv) {
       options.also = value;
     } else if (flag == "--veto-sleep") {
       options.veto_sleep = std::stod(value);
+    } else if (flag == "--veto-throw") {
+      options.veto_throw = value;
     } else if (flag == "--ros-args") {
       break;
     } else {
@@ -212,6 +216,13 @@ int main(int argc, char** argv) {
       emit("veto-answered", "\"epoch\": " + std::to_string(proposal.epoch));
       return std::string();
     });
+  }
+  if (!options.veto_throw.empty()) {
+    const std::string message = options.veto_throw;
+    contextros::ros::ContextNode::add_veto(
+        [message](const contextros::ros::LayerState&) -> std::string {
+          throw std::runtime_error(message);
+        });
   }
   if (!options.refuse.empty()) {
     // A later definition of a name replaces the earlier one; the participant announced the

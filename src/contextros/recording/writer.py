@@ -15,7 +15,7 @@ from __future__ import annotations
 from typing import Any, BinaryIO
 
 # The open chunk is written at least this often (and whenever it passes CHUNK_SIZE).
-CHUNK_PERIOD = 0.5
+CHUNK_PERIOD = 0.25
 CHUNK_SIZE = 1024 * 1024
 
 

@@ -325,8 +325,9 @@ class ContextParticipant:
         for veto in vetoes:
             try:
                 reason = veto(proposal)
-            except Exception as failure:  # a veto that fails says no
+            except Exception as failure:  # a veto that fails says no, and is logged
                 reason = f"veto {getattr(veto, '__name__', veto)!r} failed: {failure!r}"
+                self.node.get_logger().error(f"{reason} (epoch {proposal.epoch}: voting no)")
             if reason:
                 reasons.append(str(reason))
         with self._answers_lock:

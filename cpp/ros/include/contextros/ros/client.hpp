@@ -76,8 +76,8 @@ class ManagerError : public LayerError {
 // A command refused, or not acknowledged in time, or invalid (then nothing was sent).
 class ActivationFailed : public ManagerError {
  public:
-  ActivationFailed(const std::string& message, std::vector<std::string> not_acknowledged = {})
-      : ManagerError(message), not_acknowledged(std::move(not_acknowledged)) {}
+  ActivationFailed(const std::string& message, std::vector<std::string> missing = {})
+      : ManagerError(message), not_acknowledged(std::move(missing)) {}
   std::vector<std::string> not_acknowledged;
 };
 
