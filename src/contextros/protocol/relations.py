@@ -28,7 +28,7 @@ class LayerDeclaration:
 
     def merged(self, other: LayerDeclaration) -> LayerDeclaration:
         """The union of two nodes' declarations of one layer (the stricter reading)."""
-        groups = sorted({g for g in (self.group, other.group) if g})
+        groups = sorted(self.groups | other.groups)
         return LayerDeclaration(
             name=self.name,
             excludes=self.excludes | other.excludes,
