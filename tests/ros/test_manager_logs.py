@@ -39,7 +39,7 @@ def test_the_manager_log_says_what_happened(
         )
     finally:
         sensors.node.destroy_node()
-    log = wait_log(manager, "rule Battery switched Night off: 1 nodes applied it")
+    log = wait_log(manager, "rule Battery switched Night off: 1 node(s) applied it")
     assert "switched to without" not in log
     # Published, applied by /l1, not confirmed for a node that does not exist: no refusal.
     result = client.request(["Slow"], synchronous=True, timeout=0.5, expect_nodes=["/ghost"])

@@ -111,7 +111,7 @@ def test_a_rule_activates_its_layer_with_itself_as_the_reason(
     )
     system.wait_for(
         lambda _: any(
-            "rule Battery switched to Night: 1 nodes applied it" in line for line in system.lines
+            "rule Battery switched to Night: 1 node(s) applied it" in line for line in system.lines
         ),
         5,
         "the manager's log of the rule's activation",

@@ -718,11 +718,11 @@ class LayerManagerNode(Node):
             self.log.info(f"rule {firing.rule}: {target} {outcome}")
         elif result.success:
             outcome = (
-                f"epoch {result.epoch}: {len(result.acknowledged)} nodes applied it in "
+                f"epoch {result.epoch}: {len(result.acknowledged)} node(s) applied it in "
                 f"{result.elapsed * 1000:.1f} ms"
             )
             self.log.info(
-                f"rule {firing.rule} {switched} {target}: {len(result.acknowledged)} nodes "
+                f"rule {firing.rule} {switched} {target}: {len(result.acknowledged)} node(s) "
                 f"applied it in {result.elapsed * 1000:.1f} ms (epoch {result.epoch}, "
                 f"[{', '.join(result.active)}])"
             )
