@@ -702,6 +702,7 @@ def _watch(args: argparse.Namespace) -> int:
         )
 
     def on_registry(answer: Any, asked: float) -> None:
+        watch.declared(declaration_from_msg(layer) for layer in answer.layers)
         nodes = {p.node: tuple(p.hosted_nodes) for p in answer.participants}
         show(watch.registry(nodes, asked, wall=time.time()))
         show(drifts.bindings([binding_to_dict(b) for b in answer.bindings]))
