@@ -7,7 +7,13 @@
 # (other sources `#include "robot.layers.hpp"`) and the layer file's own directory (the
 # header part's includes). The layer file is named by its absolute path, so the generated
 # `#line` directives name it absolutely too: compiler messages open from the build directory,
-# where ninja and make run the compiler.
+# where ninja and make run the compiler. A relative path is relative to
+# CMAKE_CURRENT_SOURCE_DIR; a file that is not there stops the configure
+# ("contextros_add_layers(<target>): no layer file <path>").
+#
+# It links <target> with the keyword signature (`target_link_libraries(<target> PRIVATE
+# contextros::core)`): the target's own target_link_libraries calls must use keywords too
+# (PRIVATE, PUBLIC or INTERFACE); CMake refuses to mix the two signatures on one target.
 #
 # CONTEXTROS_COMPILER: the command that runs the compiler (a list; default: the `contextros`
 # program of the active virtual environment, of CMAKE_PREFIX_PATH or of PATH).
@@ -44,7 +50,11 @@ function(contextros_add_layers target)
   set(output_dir "${CMAKE_CURRENT_BINARY_DIR}/contextros_layers")
   file(MAKE_DIRECTORY "${output_dir}")
   foreach(file IN LISTS ARGN)
-    get_filename_component(source "${file}" ABSOLUTE)
+    get_filename_component(source "${file}" ABSOLUTE BASE_DIR "${CMAKE_CURRENT_SOURCE_DIR}")
+    if(NOT EXISTS "${source}" OR IS_DIRECTORY "${source}")
+      message(FATAL_ERROR "contextros_add_layers(${target}): no layer file ${file} "
+                          "(looked for ${source})")
+    endif()
     get_filename_component(source_dir "${source}" DIRECTORY)
     get_filename_component(name "${source}" NAME)
     string(REGEX REPLACE "(\\.cpp)?\\.layers$" "" stem "${name}")
