@@ -1,9 +1,9 @@
 """Layer declarations as participants announce them, and the relation check the manager runs.
 
-The manager knows no layer by itself: it learns layers and their relations (excludes,
-requires, group, after, implies) from the participants, and validates every activation
-against the union of what they declared, so a node cannot be asked for a configuration
-another node forbids.
+The manager learns layers and their relations (excludes, requires, group, after, implies)
+from the participants, and from its own layer files (`contextros manager --layers`), and
+validates every activation against the union of what they declared, so a node cannot be
+asked for a configuration another node forbids.
 """
 
 from __future__ import annotations
@@ -58,9 +58,10 @@ def with_layer_files(
     implemented: Mapping[str, LayerDeclaration], layer_files: Iterable[LayerDeclaration]
 ) -> dict[str, LayerDeclaration]:
     """The declarations the manager composes and validates with: each layer the
-    participants implement (`implemented`, merged), with the relations the manager's layer
-    files declare for it added. The one place where the two meet, live and in a replay."""
-    extra = [d for d in layer_files if d.name in implemented]
+    participants implement (`implemented`, merged) and each layer its layer files declare
+    (known as declared by the manager itself, implemented by no participant or not), with
+    the relations of both merged. The one place where the two meet, live and in a replay."""
+    extra = tuple(layer_files)
     if not extra:
         return dict(implemented)
     return merge_declarations([*implemented.values(), *extra])

@@ -215,8 +215,12 @@ class LayerManagerNode(Node):
         super().__init__(node_name, **node_options)
         self.log = NodeLog(self.get_logger())
         self.manager_id = f"{os.getpid()}-{uuid.uuid4().hex[:8]}"
+        # The layers with bindings are applied by the manager itself (before it publishes):
+        # a synchronous command naming only those needs no participant (docs/protocol.md).
         self.settings = dataclasses.replace(
-            settings or ManagerSettings(), manager_id=self.manager_id
+            settings or ManagerSettings(),
+            manager_id=self.manager_id,
+            applied_by_manager=bindings.layers() if bindings else frozenset(),
         )
         self.state_file = StateFile(state_file) if state_file else None
         saved = self.state_file.load() if self.state_file else None

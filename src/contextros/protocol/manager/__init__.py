@@ -12,13 +12,14 @@ reordering, duplication and crashes):
 - every state is a full snapshot with an epoch one above the previous one, and the epoch
   never goes down, not even across restarts (state file, participants' reports);
 - nothing is published before the manager knows an epoch (its state file or a participant);
-- a command naming a layer no live participant implements (after a grace period for a
-  restarted manager), or breaking a declared relation, changes nothing and is answered
-  with a message naming the culprits;
+- a command naming a layer neither a live participant implements nor the manager's layer
+  files declare (after a grace period for a restarted manager), or breaking a declared
+  relation, changes nothing and is answered with a message naming the culprits;
 - a synchronous command succeeds only if every participant that was live when it was
-  issued, every node it named and at least the count it asked for (one at least) applied
-  its epoch (or a newer one); else it fails naming the nodes and why. Its answer carries
-  its own epoch and that epoch's active layers;
+  issued, every node it named and at least the count it asked for (one at least, none for
+  a command naming only layers the manager applies itself) applied its epoch (or a newer
+  one); else it fails naming the nodes and why. Its answer carries its own epoch and that
+  epoch's active layers;
 - a participant silent for longer than `liveness_timeout` is dropped and reported; two
   live processes under one name are both tracked and neither acknowledges for the other;
 - a status that fails validation (bad names, sizes, implausible epochs) changes nothing;

@@ -2,7 +2,10 @@
 
 One succeeds only if every participant live when it was issued, every node it named and at
 least the count it asked for (one at least) applied its epoch or a newer one; else it fails
-naming the nodes and why. The answer carries its own epoch and that epoch's active layers.
+naming the nodes and why. A command naming only layers whose effect the manager applies
+itself (`ManagerSettings.applied_by_manager`: their bindings, set before it is published)
+needs no node: with none live it is applied by 0 nodes. The answer carries its own epoch
+and that epoch's active layers.
 """
 
 from __future__ import annotations
@@ -101,7 +104,7 @@ class Acknowledgements(ManagerBase):
         acknowledged = self._acknowledged_names(pending)
         absent = [n for n in pending.command.expect_nodes if n not in acknowledged]
         problems = [f"expected node {listing(absent)} did not apply it"] if absent else []
-        wanted = max(pending.command.expect_count, 1)
+        wanted = max(pending.command.expect_count, 0 if self._applied_by_manager(pending) else 1)
         if len(acknowledged) < wanted:
             problems.append(
                 f"applied by {len(acknowledged)} node(s), {wanted} expected"
@@ -145,6 +148,8 @@ class Acknowledgements(ManagerBase):
             message = f"{NO_CHANGE}: epoch {epoch} already has that configuration"
         else:
             message = f"epoch {epoch} applied by {len(acknowledged)} node(s){pending.note}"
+            if not acknowledged:
+                message += ", its layers' ROS parameters and lifecycle states by the manager"
         result = ActivationResult(
             success=not reasons and not missing,
             message=message,
@@ -155,6 +160,11 @@ class Acknowledgements(ManagerBase):
             elapsed=now - pending.started,
         )
         return Reply(pending.command.request_id, result)
+
+    def _applied_by_manager(self, pending: PendingActivation) -> bool:
+        """Every layer the command names has its effect applied by the manager itself."""
+        named = (*pending.command.activate, *pending.command.deactivate)
+        return bool(named) and self.settings.applied_by_manager.issuperset(named)
 
     def _absent(self, pending: PendingActivation) -> list[str]:
         acknowledged = self._acknowledged_names(pending)

@@ -52,7 +52,12 @@ class ManagerSettings:
     # command is refused at once, naming the limit. Anyone in the domain can send commands.
     max_waiting_commands: int = 1000
     # The layers and relations the manager's own layer files declare (`--layers`): merged
-    # with the participants' declarations of the layers they implement (`with_layer_files`),
-    # so the manager and `rules replay` compose and validate from the same relations. A layer
-    # only these name is still unknown until a participant implements it.
+    # with the participants' declarations (`with_layer_files`), so the manager and `rules
+    # replay` compose and validate from the same relations. A layer only these declare is
+    # known all the same: declared by the manager itself, implemented by no participant.
     layer_files: tuple[LayerDeclaration, ...] = ()
+    # The layers whose effect the manager applies itself before it publishes (their
+    # bindings: ROS parameters and lifecycle states). A synchronous command naming only
+    # these needs no participant's acknowledgement: with none live, it is answered as
+    # applied by 0 nodes (no "it reached no node").
+    applied_by_manager: frozenset[str] = frozenset()

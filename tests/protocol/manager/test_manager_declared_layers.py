@@ -1,0 +1,67 @@
+"""Layers the manager's own layer files declare (`contextros manager --layers`): known with
+no participant implementing them, their relations checked, and a synchronous command whose
+layers the manager applies itself (bindings) answered as applied by 0 nodes."""
+
+from __future__ import annotations
+
+from contextros.protocol import LayerDeclaration
+from tests.protocol.manager.scenario import command, replies, report, started, states
+
+# What `import-modes` writes for a system_modes model: layers that only carry bindings.
+FILE = (
+    LayerDeclaration("Slow", group="speed"),
+    LayerDeclaration("Fast", group="speed"),
+    LayerDeclaration("Docked", excludes=frozenset({"Fast"})),
+)
+BOUND = frozenset({"Slow", "Fast"})  # Docked has no binding: nothing applies it
+
+
+def test_a_layer_only_the_managers_file_declares_is_known_and_applied_by_0_nodes() -> None:
+    manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
+    actions = command(manager, 1, 1.0, activate=("Slow",), synchronous=True)
+    result = replies(actions)[1]
+    assert result.success, result.message
+    assert "applied by 0 node(s)" in result.message and "by the manager" in result.message
+    assert [s.active for s in states(actions)] == [("Slow",)]
+    # The file's exclusive group holds: Fast replaces Slow, and deactivating it succeeds.
+    assert replies(command(manager, 2, 1.1, activate=("Fast",), synchronous=True))[2].success
+    assert manager.state.active == ("Fast",)
+    result = replies(command(manager, 3, 1.2, deactivate=("Fast",), synchronous=True))[3]
+    assert result.success and manager.state.active == ()
+    view = manager.registry(1.2)
+    assert [d.name for d in view.layers] == ["Docked", "Fast", "Slow"]
+    assert view.implemented_by == {}
+
+
+def test_the_files_relations_hold_for_its_own_layers() -> None:
+    manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
+    command(manager, 1, 1.0, activate=("Fast",))
+    result = replies(command(manager, 2, 1.1, activate=("Docked",)))[2]
+    assert not result.success and "Docked excludes Fast" in result.message
+
+
+def test_a_declared_layer_nothing_applies_still_reached_no_node() -> None:
+    # Docked has no binding and no participant: a synchronous command says so (it is
+    # published: asynchronous commands succeed).
+    manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
+    result = replies(command(manager, 1, 1.0, activate=("Docked",), synchronous=True))[1]
+    assert not result.success and "it reached no node" in result.message
+    assert manager.state.active == ("Docked",)
+    assert replies(command(manager, 2, 1.1, deactivate=("Docked",)))[2].success
+
+
+def test_a_layer_nobody_declares_is_still_refused_naming_the_known_ones() -> None:
+    manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
+    result = replies(command(manager, 1, 1.0, activate=("Slw",)))[1]
+    assert not result.success
+    assert "unknown layer 'Slw'" in result.message and "Docked, Fast, Slow" in result.message
+
+
+def test_a_participant_still_acknowledges_its_layers_and_the_files() -> None:
+    manager = started(nodes=("/a",), layer_files=FILE, applied_by_manager=BOUND)
+    actions = command(manager, 1, 1.0, activate=("Slow",), synchronous=True)
+    assert not replies(actions)  # /a is live: it must apply the epoch
+    epoch = manager.state.epoch
+    result = replies(manager.receive_status(report("/a", epoch, ("Slow",)), 1.1))[1]
+    assert result.success and result.acknowledged == ("/a",)
+    assert manager.registry(1.1).implemented_by["Indoor"] == ("/a",)
