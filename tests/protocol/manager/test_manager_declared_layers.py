@@ -12,6 +12,8 @@ FILE = (
     LayerDeclaration("Slow", group="speed"),
     LayerDeclaration("Fast", group="speed"),
     LayerDeclaration("Docked", excludes=frozenset({"Fast"})),
+    # A system's mode: no binding of its own, its parts' modes have some.
+    LayerDeclaration("Rush", implies=frozenset({"Fast"})),
 )
 BOUND = frozenset({"Slow", "Fast"})  # Docked has no binding: nothing applies it
 
@@ -29,7 +31,7 @@ def test_a_layer_only_the_managers_file_declares_is_known_and_applied_by_0_nodes
     result = replies(command(manager, 3, 1.2, deactivate=("Fast",), synchronous=True))[3]
     assert result.success and manager.state.active == ()
     view = manager.registry(1.2)
-    assert [d.name for d in view.layers] == ["Docked", "Fast", "Slow"]
+    assert [d.name for d in view.layers] == ["Docked", "Fast", "Rush", "Slow"]
     assert view.implemented_by == {}
 
 
@@ -38,6 +40,18 @@ def test_the_files_relations_hold_for_its_own_layers() -> None:
     command(manager, 1, 1.0, activate=("Fast",))
     result = replies(command(manager, 2, 1.1, activate=("Docked",)))[2]
     assert not result.success and "Docked excludes Fast" in result.message
+
+
+def test_a_layer_implying_layers_the_manager_applies_is_applied_by_0_nodes() -> None:
+    manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
+    result = replies(command(manager, 1, 1.0, activate=("Rush",), synchronous=True))[1]
+    assert result.success, result.message
+    assert manager.state.active == ("Fast", "Rush")
+    result = replies(command(manager, 2, 1.1, deactivate=("Rush",), synchronous=True))[2]
+    assert result.success and manager.state.active == ()
+    # Asked again: no change, still a success (not "it reached no node").
+    result = replies(command(manager, 3, 1.2, deactivate=("Rush",), synchronous=True))[3]
+    assert result.success and "no change" in result.message
 
 
 def test_a_declared_layer_nothing_applies_still_reached_no_node() -> None:
@@ -54,7 +68,7 @@ def test_a_layer_nobody_declares_is_still_refused_naming_the_known_ones() -> Non
     manager = started(nodes=(), layer_files=FILE, applied_by_manager=BOUND)
     result = replies(command(manager, 1, 1.0, activate=("Slw",)))[1]
     assert not result.success
-    assert "unknown layer 'Slw'" in result.message and "Docked, Fast, Slow" in result.message
+    assert "unknown layer 'Slw'" in result.message and "Docked, Fast, Rush, Slow" in result.message
 
 
 def test_a_participant_still_acknowledges_its_layers_and_the_files() -> None:

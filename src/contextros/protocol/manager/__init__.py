@@ -17,7 +17,7 @@ reordering, duplication and crashes):
   relation, changes nothing and is answered with a message naming the culprits;
 - a synchronous command succeeds only if every participant that was live when it was
   issued, every node it named and at least the count it asked for (one at least, none for
-  a command naming only layers the manager applies itself) applied its epoch (or a newer
+  a command naming a layer the manager applies itself) applied its epoch (or a newer
   one); else it fails naming the nodes and why. Its answer carries its own epoch and that
   epoch's active layers;
 - a participant silent for longer than `liveness_timeout` is dropped and reported; two

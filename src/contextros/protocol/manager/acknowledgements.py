@@ -2,10 +2,10 @@
 
 One succeeds only if every participant live when it was issued, every node it named and at
 least the count it asked for (one at least) applied its epoch or a newer one; else it fails
-naming the nodes and why. A command naming only layers whose effect the manager applies
-itself (`ManagerSettings.applied_by_manager`: their bindings, set before it is published)
-needs no node: with none live it is applied by 0 nodes. The answer carries its own epoch
-and that epoch's active layers.
+naming the nodes and why. A command naming a layer whose effect the manager applies itself
+(`ManagerSettings.applied_by_manager`: its bindings, set before the state is published), or
+one implying such a layer, needs no node: with none live it is applied by 0 nodes. The
+answer carries its own epoch and that epoch's active layers.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from collections.abc import Iterable
 from contextros.protocol.events import ActivationResult, ManagerAction, Reply
 from contextros.protocol.manager.base import NO_CHANGE, ManagerBase
 from contextros.protocol.manager.records import Key, PendingActivation
+from contextros.protocol.relations import implied_layers
 from contextros.protocol.validation import listing
 
 
@@ -162,9 +163,18 @@ class Acknowledgements(ManagerBase):
         return Reply(pending.command.request_id, result)
 
     def _applied_by_manager(self, pending: PendingActivation) -> bool:
-        """Every layer the command names has its effect applied by the manager itself."""
+        """The manager itself applies the effect of a layer the command names, or of one
+        they imply (a system's mode: its parts' parameters and lifecycle states)."""
+        applied = self.settings.applied_by_manager
+        if not applied:
+            return False
+        declarations = self.declarations()
         named = (*pending.command.activate, *pending.command.deactivate)
-        return bool(named) and self.settings.applied_by_manager.issuperset(named)
+        return any(
+            layer in applied
+            for name in named
+            for layer in (name, *implied_layers(name, declarations))
+        )
 
     def _absent(self, pending: PendingActivation) -> list[str]:
         acknowledged = self._acknowledged_names(pending)

@@ -57,7 +57,7 @@ class ManagerSettings:
     # known all the same: declared by the manager itself, implemented by no participant.
     layer_files: tuple[LayerDeclaration, ...] = ()
     # The layers whose effect the manager applies itself before it publishes (their
-    # bindings: ROS parameters and lifecycle states). A synchronous command naming only
-    # these needs no participant's acknowledgement: with none live, it is answered as
-    # applied by 0 nodes (no "it reached no node").
+    # bindings: ROS parameters and lifecycle states). A synchronous command naming one of
+    # these, or a layer implying one, needs no participant's acknowledgement: with none
+    # live, it is answered as applied by 0 nodes (not "it reached no node").
     applied_by_manager: frozenset[str] = frozenset()
