@@ -1,7 +1,8 @@
 """The nodes of an imported system_modes model, for the import-modes test on real processes.
 
 `modes_nodes_process.py NODES_JSON LAYERS...`: loads the layer files LAYERS (their layers
-are implemented, and so announced to the manager, by one context node) and starts one ordinary
+are implemented, and so announced to the manager, by one context node; with none, no context
+node: only the manager's own layer files declare the layers) and starts one ordinary
 rclpy lifecycle node per entry of NODES_JSON (`{"motors/front": {"rpm": 0}, ...}`: the node's
 name, its namespace before the last `/`, and its parameters with their start values).
 Prints one JSON line per event (`ready`, `parameter`, `transition`).
@@ -61,7 +62,7 @@ def main() -> None:
     arguments = remove_ros_args(sys.argv)
     for layers in arguments[2:]:
         load(layers)
-    nodes: list[Node] = [ContextNode("modes_participant")]
+    nodes: list[Node] = [ContextNode("modes_participant")] if arguments[2:] else []
     nodes += [ModelNode(name, values) for name, values in json.loads(arguments[1]).items()]
     emit("ready")
     spin_nodes(nodes)

@@ -513,10 +513,15 @@ def _show_status(args: argparse.Namespace, answer: dict[str, Any]) -> int:
     if answer["outcome"] != "registry":
         print(f"contextros: {answer['message']}", file=sys.stderr)
         return _OUTCOME_STATUS.get(answer["outcome"], FAILED)
+    registry = answer["registry"]
+    for layer in registry["layers"]:
+        # Known with no participant implementing it: only the manager's --layers files
+        # declare it (docs/protocol.md).
+        layer["declared_by_manager"] = not layer["implemented_by"]
     if args.json:
-        print(json.dumps(answer["registry"], indent=2))
+        print(json.dumps(registry, indent=2))
     else:
-        print(_registry_as_text(answer["registry"]))
+        print(_registry_as_text(registry))
     return 0
 
 
@@ -559,7 +564,10 @@ def _registry_as_text(data: dict[str, Any]) -> str:
             ", ".join(layer["requires"]),
             ", ".join(layer["after"]),
             ", ".join(layer.get("implies", ())),
-            ", ".join(layer["implemented_by"]),
+            ", ".join(layer["implemented_by"])
+            or (
+                "(declared by the manager's layer file)" if layer.get("declared_by_manager") else ""
+            ),
         ]
         for layer in data["layers"]
     ]

@@ -15,9 +15,10 @@ from contextros.protocol.relations import LayerDeclaration
 
 
 def declarations_from_files(paths: Iterable[str | os.PathLike[str]]) -> list[LayerDeclaration]:
-    """Each layer of the files with its declared excludes, requires, after and implies, and each
-    group's members, in file order (files whose parse failed contribute nothing: their
-    errors are reported where the files are checked)."""
+    """Each layer of the files with its declared excludes, requires, after and implies, each
+    group's members and each layer a binding names (`parameter L:`, `lifecycle L:`: its
+    effect, even with no `layer L` anywhere), in file order (files whose parse failed
+    contribute nothing: their errors are reported where the files are checked)."""
     parsed, _ = parse_files(paths)
     found: list[LayerDeclaration] = []
     for _, _, layer_file in parsed:
@@ -33,4 +34,6 @@ def declarations_from_files(paths: Iterable[str | os.PathLike[str]]) -> list[Lay
                     implies=frozenset(r.name for r in layer.implies),
                 )
             )
+        found += [LayerDeclaration(binding.layer.name) for binding in layer_file.parameters]
+        found += [LayerDeclaration(binding.layer.name) for binding in layer_file.lifecycles]
     return found
