@@ -581,14 +581,14 @@ def test_a_binding_naming_an_undeclared_layer() -> None:
             5,
             11,
             "parameter of layer 'Typo', which this file does not declare: the Layer manager "
-            "applies it only while a layer of that name, implemented by a node, is active",
+            "given this file knows it as a layer of its own that only binds ROS nodes",
         ),
         (
             "warning",
             6,
             11,
             "lifecycle of layer 'Typo', which this file does not declare: the Layer manager "
-            "applies it only while a layer of that name, implemented by a node, is active",
+            "given this file knows it as a layer of its own that only binds ROS nodes",
         ),
     ]
 

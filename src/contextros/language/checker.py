@@ -9,6 +9,7 @@ activate.
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Iterable, Sequence
 from itertools import combinations
@@ -224,7 +225,8 @@ class _Checker:
                 if ref is not None and self.layers and ref.name not in self.layers:
                     self.sink.warning(
                         f"rule {rule.name} switches layer {ref.name!r}, which this file does "
-                        "not declare: the Layer manager refuses it unless a node implements it",
+                        f"not declare{self._did_you_mean(ref.name)}: the Layer manager "
+                        "refuses it unless a node implements it",
                         ref.at.line,
                         ref.at.col,
                     )
@@ -707,9 +709,9 @@ class _Checker:
             if self.layers and layer.name not in self.layers and layer.at not in warned:
                 warned.add(layer.at)
                 self.sink.warning(
-                    f"{kind} of layer {layer.name!r}, which this file does not declare: the "
-                    "Layer manager applies it only while a layer of that name, implemented by "
-                    "a node, is active",
+                    f"{kind} of layer {layer.name!r}, which this file does not declare"
+                    f"{self._did_you_mean(layer.name)}: the Layer manager given this file "
+                    "knows it as a layer of its own that only binds ROS nodes",
                     layer.at.line,
                     layer.at.col,
                 )
@@ -742,6 +744,11 @@ class _Checker:
                     )
             by_layer.setdefault(layer.name, (value, at))
         self._nothing_to_infer(bound)
+
+    def _did_you_mean(self, name: str) -> str:
+        """' (did you mean 'Slow'?)' for a name close to a layer the file declares."""
+        close = difflib.get_close_matches(name, self.layers, n=1)
+        return f" (did you mean {close[0]!r}?)" if close else ""
 
     def _nothing_to_infer(
         self, bound: dict[tuple[str, str], dict[str, tuple[ParameterValue, Position]]]
