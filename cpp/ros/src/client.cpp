@@ -301,7 +301,11 @@ void LayerClient::wait_for_manager(std::chrono::duration<double> timeout) {
   std::lock_guard<std::mutex> lock(impl_->busy);
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(timeout);
   while (!(impl_->activate.server_available() && impl_->query.server_available())) {
-    if (Clock::now() >= deadline || !impl_->context_ok()) {
+    if (!impl_->context_ok()) {
+      throw ManagerError("ROS was shut down while waiting for the Layer manager on " +
+                         service_name());
+    }
+    if (Clock::now() >= deadline) {
       throw ManagerError("no Layer manager answers on " + service_name() +
                          " (ROS_DOMAIN_ID=" + impl_->domain() + ") after " +
                          seconds_text(timeout) +

@@ -1,6 +1,6 @@
 // The activation client in C++: asks the Layer manager for activations, as the Python
 // `contextros.ros.LayerClient` does (docs/client.md), on any rcl node (a plain rcl program's,
-// or an rclcpp node's `get_node_base_interface()->get_rcl_node_handle()`).
+// or an rclcpp node's `*node->get_node_base_interface()->get_rcl_node_handle()`).
 //
 //   contextros::ros::LayerClient client(node.get());
 //   client.wait_for_manager(std::chrono::seconds(5));   // ManagerError if none answers

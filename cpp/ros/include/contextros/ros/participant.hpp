@@ -11,7 +11,7 @@
 // are announced as hosted nodes; when the carrier goes, the next one takes over).
 //
 // Works with any rcl_node_t: a plain rcl program's, or an rclcpp node's
-// (`node.get_node_base_interface()->get_rcl_node_handle()`, see contextros/ros/rclcpp.hpp).
+// (`*node->get_node_base_interface()->get_rcl_node_handle()`, see contextros/ros/rclcpp.hpp).
 // The rcl node must outlive the Participant / ContextNode attached to it.
 #pragma once
 
