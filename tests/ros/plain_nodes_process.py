@@ -2,8 +2,10 @@
 
 `/base` has a parameter `max_speed` (double, 1.0) and refuses values above 5.0; the
 lifecycle node `/propeller` activates unless its parameter `refuse_activation` is true.
-Prints one JSON line per event (`ready`, `parameter`, `transition`). `--slow-set S`: each
-parameter change of `/base` takes S seconds.
+Prints one JSON line per event (`ready`, `parameter`, `transition`, `activating`).
+`--slow-set S`: each parameter change of `/base` takes S seconds; `--slow-activate S`: so
+does `/propeller`'s activation (the node answers nothing meanwhile, as a single-threaded
+driver busy in `on_activate`).
 """
 
 from __future__ import annotations
@@ -43,8 +45,9 @@ class Base(Node):
 
 
 class Propeller(LifecycleNode):
-    def __init__(self) -> None:
+    def __init__(self, slow_activate: float = 0.0) -> None:
         super().__init__("propeller")
+        self.slow_activate = slow_activate
         self.declare_parameter("refuse_activation", False)
 
     def on_configure(self, state: Any) -> TransitionCallbackReturn:
@@ -52,6 +55,8 @@ class Propeller(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: Any) -> TransitionCallbackReturn:
+        emit("activating")
+        time.sleep(self.slow_activate)
         if self.get_parameter("refuse_activation").value:
             emit("transition", to="refused", via="activate")
             return TransitionCallbackReturn.FAILURE
@@ -67,10 +72,13 @@ class Propeller(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
 
+def seconds(option: str) -> float:
+    return float(sys.argv[sys.argv.index(option) + 1]) if option in sys.argv else 0.0
+
+
 def main() -> None:
     rclpy.init(args=sys.argv)
-    slow_set = float(sys.argv[sys.argv.index("--slow-set") + 1]) if "--slow-set" in sys.argv else 0
-    nodes: list[Node] = [Base(slow_set), Propeller()]
+    nodes: list[Node] = [Base(seconds("--slow-set")), Propeller(seconds("--slow-activate"))]
     emit("ready")
     spin_nodes(nodes)
     rclpy.try_shutdown()

@@ -11,7 +11,13 @@ import pytest
 from rcl_interfaces.msg import ParameterType
 
 from contextros.bindings import Bindings
-from contextros.ros.bindings import BindingDriver, BindingError, shown, to_parameter_value
+from contextros.ros.bindings import (
+    BindingDriver,
+    BindingError,
+    CallTimedOut,
+    shown,
+    to_parameter_value,
+)
 
 LAYERS = """\
 parameter Slow: /base max_speed = 0.3
@@ -27,6 +33,9 @@ class _Logger:
         self.errors: list[str] = []
 
     def error(self, text: str) -> None:
+        self.errors.append(text)
+
+    def warning(self, text: str) -> None:
         self.errors.append(text)
 
 
@@ -46,7 +55,8 @@ class _Node:
 
 class FakeDriver(BindingDriver):
     """Nodes held in dictionaries; `down` nodes do not answer, `rejecting` nodes refuse
-    every parameter value, `refused` transitions fail."""
+    every parameter value, `refused` transitions fail; `late` nodes carry a change out but
+    answer too late; `crash` is raised by a transition once it is done (the manager dies)."""
 
     def __init__(self, bindings: Bindings, memory: Path | None = None) -> None:
         super().__init__(_Node(), bindings, memory=memory)  # type: ignore[arg-type]
@@ -57,6 +67,8 @@ class FakeDriver(BindingDriver):
         self.down: set[str] = set()
         self.rejecting: set[str] = set()
         self.refused: set[str] = set()
+        self.late: set[str] = set()
+        self.crash: BaseException | None = None
 
     def _answering(self, node: str) -> None:
         if node in self.down:
@@ -71,6 +83,9 @@ class FakeDriver(BindingDriver):
         if node in self.rejecting:
             raise BindingError(f"node {node} rejected parameter {name} = {shown(value)}")
         self.parameters[(node, name)] = value
+        if node in self.late:
+            self.late.discard(node)
+            raise CallTimedOut(f"node {node} did not answer setting parameter {name}")
 
     def _get_state(self, node: str) -> str:
         self._answering(node)
@@ -85,6 +100,8 @@ class FakeDriver(BindingDriver):
         before, after = _STATES[transition_id]
         assert self.states[node] == before
         self.states[node] = after
+        if self.crash is not None:
+            raise self.crash
 
     def speed(self) -> str:
         return shown(self.parameters[("/base", "max_speed")])
@@ -194,12 +211,12 @@ def test_kept_values_keep_their_types(tmp_path: Path) -> None:
     first = FakeDriver(bindings(tmp_path), memory)
     for value in (True, 7, 2.0, "eco"):
         first.parameters[("/base", "max_speed")] = to_parameter_value(value)
-        first._original_parameters.clear()
+        first.kept.parameters.clear()
         first.switch((), ("Slow",))
         second = restarted(first, tmp_path)
         second.switch(("Slow",), ())
         assert second.parameters[("/base", "max_speed")] == to_parameter_value(value)
-        first.applied = ()
+        first.settled(())
 
 
 def test_a_damaged_memory_is_logged_and_ignored(tmp_path: Path) -> None:
@@ -212,5 +229,36 @@ def test_a_damaged_memory_is_logged_and_ignored(tmp_path: Path) -> None:
     ):
         memory.write_text(text, encoding="utf-8")
         driver = FakeDriver(bindings(tmp_path), memory)
-        assert driver.applied == () and not driver._original_parameters
+        assert driver.applied == () and not driver.kept.parameters
         assert "ignored" in driver.node.get_logger().errors[0]  # type: ignore[attr-defined]
+
+
+def test_a_set_answered_too_late_is_read_back_and_undone(driver: FakeDriver) -> None:
+    driver.late.add("/base")
+    with pytest.raises(BindingError) as refused:
+        driver.switch((), ("Slow",))
+    assert str(refused.value) == (
+        "node /base did not answer setting parameter max_speed, so whether it did is unknown: "
+        "/base had max_speed = 0.3: set back to 1; everything the command changed is undone, "
+        "no state published"
+    )
+    assert driver.speed() == "1" and driver.applied == () and not driver.unsettled
+
+
+class _Killed(BaseException):
+    """The manager's process ends here (kill -9): nothing after it runs."""
+
+
+def test_what_to_give_back_is_on_disk_before_anything_changes(tmp_path: Path) -> None:
+    memory = tmp_path / "state.json.bindings.json"
+    first = FakeDriver(bindings(tmp_path), memory)
+    first.crash = _Killed()
+    with pytest.raises(_Killed):  # max_speed set, the propeller configured, then killed
+        first.switch((), ("Slow", "Outdoor"))
+    assert (first.speed(), first.states["/propeller"]) == ("0.3", "inactive")
+    second = restarted(first, tmp_path)
+    second.crash = None
+    assert second.applied == () and second.unsettled
+    second.switch(second.applied, ())  # the recovered state: what the manager reconciles to
+    assert (second.speed(), second.states["/propeller"]) == ("1", "unconfigured")
+    assert not second.unsettled and not second.kept.parameters and not second.kept.states

@@ -137,6 +137,14 @@ def register(commands: Any) -> None:
         "for its participant before it is refused (default 2 s)",
     )
     manager.add_argument(
+        "--binding-timeout",
+        type=Seconds(positive=True, most=MAX_TIMEOUT),
+        default=10.0,
+        metavar="S",
+        help="how long each parameter or lifecycle call of the layers' bindings waits for the "
+        "node's answer (default 10 s; within a command, no longer than its caller waits)",
+    )
+    manager.add_argument(
         "--layers",
         "--rules",
         dest="layer_files",
@@ -333,7 +341,11 @@ def run_manager(args: argparse.Namespace) -> int:
         with ros_session(args):
             try:
                 node = LayerManagerNode(
-                    settings=settings, state_file=args.state_file, rules=rules, bindings=bindings
+                    settings=settings,
+                    state_file=args.state_file,
+                    rules=rules,
+                    bindings=bindings,
+                    binding_timeout=args.binding_timeout,
                 )
             except LayerError as error:
                 print(f"contextros manager: {error}", file=sys.stderr)

@@ -9,19 +9,20 @@ A switch runs in a worker thread (blocking on the answers while the manager's ex
 keeps spinning and delivers them), and either completes or is rolled back: a parameter a
 node rejects, a node that does not answer, or a failed lifecycle transition undoes what the
 switch already did, in reverse order, and names node, parameter or transition and the reason.
+A call not answered in time has an unknown outcome: the node is read afterwards and given
+back what it had, and the message says what was found and done. What to give back is on
+disk before anything changes (`contextros.ros.binding_memory`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import json
-import os
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from contextros_interfaces.msg import BindingInfo
 from lifecycle_msgs.msg import Transition
@@ -35,21 +36,47 @@ from contextros.bindings.actual import ActualState, BindingKey, Reading
 from contextros.bindings.values import (
     NOT_SET,
     PRIMARY_STATES,
-    from_json,
     parameter_fields,
     plain_value,
     shown_parameter,
-    to_json,
 )
 from contextros.language.bindings import LifecycleBinding, ParameterBinding
 from contextros.language.bindings import ParameterValue as Value
+from contextros.ros.binding_memory import BindingMemory, BindingMemoryFile, Configuration
 from contextros.ros.messages import seconds_to_stamp
 
 _MAX_REASON = 300
+# Each call waits this long for its answer unless told otherwise (`--binding-timeout`):
+# real drivers may take seconds to configure or activate.
+CALL_TIMEOUT = 10.0
+# How long a call waits for the node's service to be in the ROS graph (a node that is
+# down), beyond the first seconds after the start while services are still being discovered.
+SERVICE_WAIT = 2.0
+# A node that did not answer in time may still be busy with that request: it is read again
+# (to learn what happened) for up to this many call timeouts, while it is in a transition too.
+PATIENCE_AFTER_A_TIMEOUT = 3
+_POLL = 0.1  # seconds between reads of a node caught in a lifecycle transition
+T = TypeVar("T")
 
 
 class BindingError(Exception):
-    """A switch's ROS side could not be done (already rolled back); the message says why."""
+    """A switch's ROS side could not be done; the message says why and what was undone."""
+
+
+class CallTimedOut(BindingError):
+    """A request went out and no answer came in time: whether the node did it is unknown."""
+
+
+class InTransition(BindingError):
+    """A lifecycle node answered with a transition state (configuring, activating, ...)."""
+
+
+@dataclass(frozen=True)
+class Deadline:
+    """The moment (monotonic) by which a command's calls must be over, and why, for messages."""
+
+    at: float
+    why: str
 
 
 def _printable(text: str) -> str:
@@ -78,7 +105,7 @@ class BindingDriver:
         node: Node,
         bindings: Bindings,
         *,
-        call_timeout: float = 2.0,
+        call_timeout: float = CALL_TIMEOUT,
         discovery_time: float = 5.0,
         memory: Path | None = None,
     ) -> None:
@@ -86,23 +113,23 @@ class BindingDriver:
         self.bindings = bindings
         self.call_timeout = call_timeout
         # Until this (monotonic) time, a node's services may still be being discovered: a
-        # call waits for them until then, not just `call_timeout`.
+        # call waits for them until then, not just `SERVICE_WAIT`.
         self.discovered_by = time.monotonic() + discovery_time
-        # The configuration ROS reflects now (what the last completed switch was for).
-        self.applied: tuple[str, ...] = ()
-        # Values and states from before any layer touched them, to restore.
-        self._original_parameters: dict[tuple[str, str], Any] = {}
-        self._original_states: dict[str, str] = {}
+        # The configuration ROS reflects, the values and states to give back, and what a
+        # switch may have left half-done (binding_memory says the invariants).
+        self.kept = BindingMemory()
         self._clients: dict[tuple[str, str], Any] = {}
         # (node, parameter or "" for lifecycle) -> the last result of applying it.
         self._results: dict[tuple[str, str], BindingResult] = {}
         # What the switches read and set on the nodes, for the actual state (`take_readings`).
         self._readings: list[tuple[BindingKey, Reading]] = []
         self._lock = threading.Lock()
-        # Where `applied` and the originals are kept across restarts (next to the state file).
+        # The running command's calls end by then (None: each waits `call_timeout`).
+        self._deadline: Deadline | None = None
+        # Where `kept` is across restarts (next to the state file).
         self.memory = memory
-        if memory is not None:
-            self._load(memory)
+        self._file = BindingMemoryFile(memory) if memory is not None else None
+        self._load()
         # Discovery of a service takes a while (seconds on a loaded machine): the clients
         # exist from the start, so the first switch does not wait for it.
         for name in sorted({self.resolve(b.node) for b in bindings.parameters}):
@@ -112,58 +139,53 @@ class BindingDriver:
             self._client(name, "get_state", GetState)
             self._client(name, "change_state", ChangeState)
 
+    @property
+    def applied(self) -> Configuration:
+        """The configuration ROS was last brought to completely."""
+        return self.kept.applied
+
+    @property
+    def unsettled(self) -> bool:
+        """Whether ROS may be partly elsewhere (a switch killed halfway, a rollback that
+        failed): then even a switch to `applied` has work to do (`plan`)."""
+        return bool(self.kept.unsettled)
+
+    def settled(self, configuration: Sequence[str]) -> None:
+        """ROS reflects `configuration` (its plan from here is empty)."""
+        self.kept.applied, self.kept.unsettled = tuple(configuration), ()
+        self._save()
+
     # -- memory across restarts ---------------------------------------------------------
 
-    def _load(self, path: Path) -> None:
-        """Take `applied` and the originals from `path`; a damaged file is logged and
-        ignored (the values in place are then taken for the originals, as without one)."""
+    def _load(self) -> None:
+        """Take `kept` from the file; a damaged file is logged and ignored (the values in
+        place are then taken for the originals, as without one)."""
+        if self._file is None:
+            return
         try:
-            if not path.exists():
-                return
-            data = json.loads(path.read_text(encoding="utf-8"))
-            applied = tuple(data["applied"])
-            parameters = {
-                (str(p["node"]), str(p["name"])): _value_from_json(p) for p in data["parameters"]
-            }
-            states = {str(node): str(state) for node, state in data["lifecycles"].items()}
-            if not all(isinstance(name, str) for name in applied) or not all(
-                state in PRIMARY_STATES.values() for state in states.values()
-            ):
-                raise ValueError("unexpected layer names or lifecycle states")
+            loaded = self._file.load()
         except (OSError, ValueError, TypeError, KeyError, AttributeError) as error:
             self.node.get_logger().error(
-                f"ignored {path} (values to restore from before the last restart): {error!r}"
+                f"ignored {self._file.path} (values to restore from before the last restart): "
+                f"{error!r}"
             )
             return
-        self.applied = applied
-        self._original_parameters = parameters
-        self._original_states = states
+        if loaded is not None:
+            self.kept = loaded
+        if self.kept.unsettled:
+            self.node.get_logger().warning(
+                f"{self._file.path}: the last switch of the layers' parameters and lifecycle "
+                "states did not end (the manager stopped during it): the nodes are brought "
+                "to the recovered state, what the layers changed given back"
+            )
 
     def _save(self) -> None:
-        if self.memory is None:
+        if self._file is None:
             return
-        parameters = [
-            {"node": node, "name": name, **_value_to_json(value)}
-            for (node, name), value in sorted(self._original_parameters.items())
-        ]
-        text = json.dumps(
-            {
-                "applied": list(self.applied),
-                "parameters": parameters,
-                "lifecycles": dict(sorted(self._original_states.items())),
-            },
-            indent=2,
-        )
-        partial = self.memory.with_name(f".{self.memory.name}.{os.getpid()}.tmp")
         try:
-            self.memory.parent.mkdir(parents=True, exist_ok=True)
-            with partial.open("w", encoding="utf-8") as stream:
-                stream.write(text)
-                stream.flush()
-                os.fsync(stream.fileno())
-            partial.replace(self.memory)
+            self._file.save(self.kept)
         except OSError as error:
-            self.node.get_logger().error(f"{self.memory} not written: {error}")
+            self.node.get_logger().error(f"{self._file.path} not written: {error}")
 
     # -- names --------------------------------------------------------------------------
 
@@ -175,89 +197,147 @@ class BindingDriver:
         return f"{namespace}/{name.removeprefix('~/')}"
 
     def plan(self, old: Sequence[str], new: Sequence[str]) -> Plan:
-        return self.bindings.plan(old, new, self.resolve)
+        """The changes from `old` to `new`; with ROS unsettled, also those from each
+        configuration it may be partly at (what any of them touched is set or restored)."""
+        plans = [self.bindings.plan(c, new, self.resolve) for c in (old, *self.kept.unsettled)]
+        if len(plans) == 1:
+            return plans[0]
+        return Plan(
+            tuple(
+                sorted(
+                    {change for p in plans for change in p.parameters},
+                    key=lambda c: (not c.restore, c.node, c.name),
+                )
+            ),
+            tuple(
+                sorted(
+                    {change for p in plans for change in p.lifecycles},
+                    key=lambda c: (not c.restore, c.node),
+                )
+            ),
+        )
 
     # -- the switch (worker thread) -----------------------------------------------------
 
-    def switch(self, old: Sequence[str], new: Sequence[str]) -> None:
-        """Make ROS reflect `new` (coming from `old`); BindingError, rolled back, if not."""
+    def switch(
+        self, old: Sequence[str], new: Sequence[str], deadline: Deadline | None = None
+    ) -> None:
+        """Make ROS reflect `new` (coming from `old`), each call over by `deadline`;
+        BindingError, rolled back, if not (its message says what was undone and how)."""
         plan = self.plan(old, new)
-        undo: list[tuple[str, Any]] = []
+        undo: list[_Undo] = []
         # The originals are forgotten only once the whole switch succeeded: a restore that
         # fails, or one a later step rolls back, must find them again next time.
         originals = _Originals()
+        unsettled_before = self.kept.unsettled
+        if tuple(new) not in unsettled_before:
+            # On disk before the first change (`_write_ahead`): killed halfway, a restarted
+            # manager knows ROS may be partly at `new`.
+            self.kept.unsettled = (*unsettled_before, tuple(new))
+        self._deadline = deadline
         try:
             for change in plan.parameters:
                 self._parameter(change, undo, originals)
             for lifecycle in plan.lifecycles:
                 self._lifecycle(lifecycle, undo, originals)
-        except BindingError:
-            if self._roll_back(undo):
+        except BindingError as error:
+            self._deadline = None  # a rollback takes what it needs
+            complete, notes = self._roll_back(undo)
+            if complete:
                 # Everything is as before: what this switch read first is read again.
                 self._forget(originals.read)
+                self.kept.unsettled = unsettled_before
             self._save()
-            raise
+            raise BindingError(
+                _failure(str(error), isinstance(error, CallTimedOut), complete, notes)
+            ) from None
+        finally:
+            self._deadline = None
         self._forget(originals.restored)
-        self.applied = tuple(new)
+        self.kept.applied, self.kept.unsettled = tuple(new), ()
+        self._save()
+
+    def _write_ahead(self) -> None:
+        """Before a change: the file has what to give back, and that a switch is under way."""
         self._save()
 
     def _forget(self, keys: list[tuple[str, Any]]) -> None:
         for kind, key in keys:
             if kind == "parameter":
-                self._original_parameters.pop(key, None)
+                self.kept.parameters.pop(key, None)
             else:
-                self._original_states.pop(key, None)
+                self.kept.states.pop(key, None)
 
-    def _roll_back(self, undo: list[tuple[str, Any]]) -> bool:
-        """Undo `undo` in reverse order; False if a step failed (logged)."""
-        complete = True
-        for kind, step in reversed(undo):
+    def _roll_back(self, undo: list[_Undo]) -> tuple[bool, list[str]]:
+        """Undo `undo` in reverse order: whether all of it was, and what to say about the
+        steps whose outcome was unknown and those that failed (logged too)."""
+        complete, notes = True, []
+        for step in reversed(undo):
             try:
-                if kind == "parameter":
-                    node, name, previous = step
-                    self._set(node, name, previous)
-                    self._seen((node, name), previous)
-                else:
-                    node, path = step
-                    for transition_id, label in path:
-                        self._change_state(node, transition_id, label)
-                    self._seen((node, ""), self._get_state(node))
+                note = self._undo(step)
             except BindingError as error:
                 complete = False
                 self.node.get_logger().error(f"rolling back: {error}")
-        return complete
+                notes.append(f"not undone: {error}")
+            else:
+                if note:
+                    notes.append(note)
+        return complete, notes
 
-    def _parameter(
-        self, change: ParameterChange, undo: list[tuple[str, Any]], originals: _Originals
-    ) -> None:
+    def _undo(self, step: _Undo) -> str:
+        """Undo one step; what to say about it ("" for a step whose outcome was known)."""
+        if isinstance(step, _ParameterBack):
+            if step.unknown:
+                return self._parameter_back(step.node, step.name, step.previous)
+            self._set(step.node, step.name, step.previous)
+            self._seen((step.node, step.name), step.previous)
+            self._put_back((step.node, step.name), shown(step.previous))
+            return ""
+        if step.timed_out:
+            return self._state_back(step.node, step.previous, step.timed_out)
+        for transition_id, label in step.path:
+            self._change_state(step.node, transition_id, label)
+        self._seen((step.node, ""), self._get_state(step.node))
+        self._put_back((step.node, ""), step.previous)
+        return ""
+
+    def _put_back(self, key: tuple[str, str], value: str) -> None:
+        """`status` shows that a set rolled back is no longer in place."""
+        text = f"put back to {value} (the switch failed)"
+        self._results[key] = BindingResult(True, text, time.time())
+
+    def _parameter(self, change: ParameterChange, undo: list[_Undo], originals: _Originals) -> None:
         key = change.key
         current = self._get(change.node, change.name)
         self._seen(key, current)
-        if key not in self._original_parameters:
-            self._original_parameters[key] = current
+        if key not in self.kept.parameters:
+            self.kept.parameters[key] = current
             originals.read.append(("parameter", key))
         if change.restore:
-            target = self._original_parameters[key]
+            target = self.kept.parameters[key]
             originals.restored.append(("parameter", key))
             if target.type == NOT_SET:
                 return  # it had no value before: leave the last one
         else:
             target = to_parameter_value(change.value, like=current)
+        self._write_ahead()
         with self._outcome((change.node, change.name), change, shown(target)):
-            self._set(change.node, change.name, target, change.layer)
+            try:
+                self._set(change.node, change.name, target, change.layer)
+            except CallTimedOut:
+                undo.append(_ParameterBack(change.node, change.name, current, unknown=True))
+                raise
         self._seen(key, target)
-        undo.append(("parameter", (change.node, change.name, current)))
+        undo.append(_ParameterBack(change.node, change.name, current))
 
-    def _lifecycle(
-        self, change: LifecycleChange, undo: list[tuple[str, Any]], originals: _Originals
-    ) -> None:
+    def _lifecycle(self, change: LifecycleChange, undo: list[_Undo], originals: _Originals) -> None:
         current = self._get_state(change.node)
         self._seen((change.node, ""), current)
-        if change.node not in self._original_states:
-            self._original_states[change.node] = current
+        if change.node not in self.kept.states:
+            self.kept.states[change.node] = current
             originals.read.append(("lifecycle", change.node))
         if change.restore:
-            wanted: str | None = self._original_states[change.node]
+            wanted: str | None = self.kept.states[change.node]
             originals.restored.append(("lifecycle", change.node))
         else:
             wanted = change.state
@@ -266,19 +346,79 @@ class BindingDriver:
             path = transitions(current, wanted)
         except ValueError as error:
             raise BindingError(f"lifecycle node {change.node}: {error}") from None
+        if path:
+            self._write_ahead()
         done: list[tuple[int, str]] = []
         with self._outcome((change.node, ""), change, wanted):
             for transition_id, label in path:
                 try:
                     self._change_state(change.node, transition_id, label, change.layer, current)
+                except CallTimedOut:
+                    undo.append(_StateBack(change.node, current, (), label))
+                    raise
                 except BindingError:
                     if done:
-                        undo.append(("lifecycle", (change.node, _reverse(done))))
+                        undo.append(_StateBack(change.node, current, _reverse(done)))
                     raise
                 done.append((transition_id, label))
         self._seen((change.node, ""), wanted)
         if done:
-            undo.append(("lifecycle", (change.node, _reverse(done))))
+            undo.append(_StateBack(change.node, current, _reverse(done)))
+
+    # -- a call whose outcome is unknown ------------------------------------------------
+
+    def _parameter_back(self, node: str, name: str, previous: Any) -> str:
+        """After a set of `name` timed out: read what the node has, and set `previous`
+        again if it is not that; what was found and done."""
+        value = self._read_after_a_timeout(lambda: self._get(node, name))
+        self._seen((node, name), value)
+        if value == previous:
+            return f"{node} still had {name} = {shown(previous)}"
+        self._set(node, name, previous)
+        self._seen((node, name), previous)
+        return f"{node} had {name} = {shown(value)}: set back to {shown(previous)}"
+
+    def _state_back(self, node: str, previous: str, after: str) -> str:
+        """After transition `after` of lifecycle node `node` timed out: read its state
+        (waiting while it is in a transition) and bring it back to `previous`; what was
+        found and done. BindingError, naming the state the node is left in, if it cannot."""
+        try:
+            state = self._read_after_a_timeout(lambda: self._get_state(node))
+        except InTransition as error:
+            raise BindingError(f"{error}: left there (it was {previous} before {after})") from None
+        except BindingError as error:
+            raise BindingError(
+                f"{error}: its state is unknown (it was {previous} before {after})"
+            ) from None
+        self._seen((node, ""), state)
+        if state == previous:
+            return f"lifecycle node {node} was still {previous}"
+        try:
+            path = transitions(state, previous)
+        except ValueError as error:
+            raise BindingError(f"lifecycle node {node} is left {state}: {error}") from None
+        for transition_id, label in path:
+            try:
+                self._change_state(node, transition_id, label, current=state)
+            except BindingError as error:
+                raise BindingError(f"{error}: lifecycle node {node} is left {state}") from None
+        self._seen((node, ""), previous)
+        labels = ", ".join(label for _, label in path)
+        return f"lifecycle node {node} was {state}: brought back to {previous} ({labels})"
+
+    def _read_after_a_timeout(self, read: Callable[[], T]) -> T:
+        """`read()` of a node that did not answer in time: it may still be busy with that
+        request, so a read that times out, or finds it in a transition, is asked again
+        for up to PATIENCE_AFTER_A_TIMEOUT call timeouts."""
+        give_up = time.monotonic() + PATIENCE_AFTER_A_TIMEOUT * self.call_timeout
+        while True:
+            try:
+                return read()
+            except (CallTimedOut, InTransition) as error:
+                if time.monotonic() >= give_up:
+                    raise
+                if isinstance(error, InTransition):
+                    time.sleep(_POLL)
 
     # -- the actual state: what the nodes have (contextros.bindings.actual) -------------
 
@@ -380,19 +520,34 @@ class BindingDriver:
 
     def _call(self, node: str, kind: str, service_type: Any, request: Any, what: str) -> Any:
         client = self._client(node, kind, service_type)
-        wait = max(self.call_timeout, self.discovered_by - time.monotonic())
+        limit, why = self._time_left()
+        if limit <= 0:
+            raise BindingError(f"node {node}: {what} not asked: no time left ({why})")
+        wait = min(limit, max(SERVICE_WAIT, self.discovered_by - time.monotonic()))
         if not client.wait_for_service(timeout_sec=wait):
             raise BindingError(f"node {node} does not answer on {node}/{kind} ({what})")
+        limit, why = self._time_left()
         future = client.call_async(request)
         finished = threading.Event()
         future.add_done_callback(lambda _: finished.set())
-        if not finished.wait(self.call_timeout):
+        if not finished.wait(max(limit, 0.0)):
             client.remove_pending_request(future)
-            raise BindingError(f"node {node} did not answer {what} within {self.call_timeout:g} s")
+            within = f"{limit:.3g} s ({why})" if why else f"{limit:g} s"
+            raise CallTimedOut(f"node {node} did not answer {what} within {within}")
         response = future.result()
         if response is None:
             raise BindingError(f"node {node}: {what} failed ({future.exception()})")
         return response
+
+    def _time_left(self) -> tuple[float, str]:
+        """How long the next call may wait for its answer, and why not `call_timeout`
+        ("" when it is): the command's deadline comes first."""
+        deadline = self._deadline
+        if deadline is not None:
+            left = deadline.at - time.monotonic()
+            if left < self.call_timeout:
+                return left, deadline.why
+        return self.call_timeout, ""
 
     def _get(self, node: str, name: str) -> Any:
         response = self._call(
@@ -425,7 +580,7 @@ class BindingDriver:
         state = PRIMARY_STATES.get(response.current_state.id)
         if state is None:
             label = _printable(response.current_state.label)
-            raise BindingError(f"lifecycle node {node} is in transition state {label!r}")
+            raise InTransition(f"lifecycle node {node} is in transition state {label!r}")
         return state
 
     def _change_state(
@@ -450,18 +605,45 @@ def _shown_value(value: Any) -> str:
     return ("true" if value else "false") if isinstance(value, bool) else repr(value)
 
 
-def _value_to_json(message: Any) -> dict[str, Any]:
-    """Kept across restarts: the types a layer can set (another is kept as not set: a
-    restarted manager reads the value in place instead)."""
-    return to_json(message)
+@dataclass(frozen=True)
+class _ParameterBack:
+    """A parameter a switch set (or may have: `unknown`), and the value it had before."""
+
+    node: str
+    name: str
+    previous: Any
+    unknown: bool = False
 
 
-def _value_from_json(data: Any) -> Any:
-    kind, field_name, value = from_json(data)
-    message = ParameterValue(type=kind)
-    if field_name:
-        setattr(message, field_name, value)
-    return message
+@dataclass(frozen=True)
+class _StateBack:
+    """A lifecycle node a switch moved from `previous`, and the transitions back; or, when
+    transition `timed_out` was not answered in time, the node to read and bring back."""
+
+    node: str
+    previous: str
+    path: Sequence[tuple[int, str]]
+    timed_out: str = ""
+
+
+_Undo = _ParameterBack | _StateBack
+
+
+def _failure(error: str, timed_out: bool, complete: bool, notes: list[str]) -> str:
+    """A failed switch's message: what failed, and what became of what it had changed."""
+    if complete and not timed_out:
+        return f"{error}; nothing changed"
+    done = "; ".join(notes)
+    if complete:
+        return (
+            f"{error}, so whether it did is unknown: {done}; everything the command changed "
+            "is undone, no state published"
+        )
+    unknown = ", so whether it did is unknown" if timed_out else ""
+    return (
+        f"{error}{unknown}; rolled back only in part ({done}); no state published, the "
+        "manager tries again to bring the nodes to the published state"
+    )
 
 
 @dataclass

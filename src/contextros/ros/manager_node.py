@@ -9,7 +9,6 @@ replies (see `_DeferredResponses`).
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import os
 import threading
@@ -45,6 +44,7 @@ from contextros.protocol import (
     ReportRejected,
 )
 from contextros.protocol.events import DURABLE
+from contextros.ros.durable_file import partial_path, write_durably
 from contextros.ros.messages import (
     command_from_request,
     fill_query_response,
@@ -57,7 +57,7 @@ from contextros.rules import Firing, RuleSet
 
 if TYPE_CHECKING:
     from contextros.ros.binding_watch import BindingWatch, WatchJob
-    from contextros.ros.bindings import BindingDriver
+    from contextros.ros.bindings import BindingDriver, Deadline
     from contextros.ros.graph_observer import GraphObserver
     from contextros.ros.rules import RuleRunner
 from contextros.ros.topics import (
@@ -118,27 +118,10 @@ class StateFile:
     def save(self, memory: ManagerMemory | LayerState) -> None:
         if isinstance(memory, LayerState):
             memory = ManagerMemory(memory)
-        partial = self._partial()
-        try:
-            with partial.open("w", encoding="utf-8") as stream:
-                stream.write(memory.to_json(wall_time=time.time()))
-                stream.flush()
-                os.fsync(stream.fileno())
-            partial.replace(self.path)
-        except OSError:
-            with contextlib.suppress(OSError):
-                partial.unlink()
-            raise
-        # The rename itself on disk too: after a power cut, the old file (and an epoch
-        # handed out again) must not come back.
-        directory = os.open(self.path.parent, os.O_RDONLY)
-        try:
-            os.fsync(directory)
-        finally:
-            os.close(directory)
+        write_durably(self.path, memory.to_json(wall_time=time.time()))
 
     def _partial(self) -> Path:
-        return self.path.with_name(f".{self.path.name}.{os.getpid()}.tmp")
+        return partial_path(self.path)
 
 
 class _DeferredResponses:
@@ -207,6 +190,7 @@ class LayerManagerNode(Node):
         tick_period: float = 0.05,
         rules: RuleSet | None = None,
         bindings: Bindings | None = None,
+        binding_timeout: float = 10.0,
         **node_options: Any,
     ) -> None:
         # Every entity of the node is waited on at every wake-up (a wake-up costs the
@@ -302,6 +286,7 @@ class LayerManagerNode(Node):
         self._reconcile_failures = 0
         self._reconcile_failed_for: tuple[str, ...] | None = None
         self._reconcile_target: tuple[str, ...] = ()
+        self._reconcile_heals = False  # it finishes a switch that did not end (killed, failed)
         self._reconcile_after = 0.0
         self._graph_observer: GraphObserver | None = None
         if bindings:
@@ -312,7 +297,11 @@ class LayerManagerNode(Node):
             memory = (
                 state_file.with_name(f"{state_file.name}.bindings.json") if state_file else None
             )
-            self.bindings = BindingDriver(self, bindings, memory=memory)
+            # Each parameter or lifecycle call waits `binding_timeout` for its answer (within
+            # a command, no longer than its caller waits: `_drive`).
+            self.bindings = BindingDriver(
+                self, bindings, call_timeout=binding_timeout, memory=memory
+            )
             from contextros.ros.binding_watch import BindingWatch
 
             self.watch = BindingWatch(self.bindings, self.log, self._graph())
@@ -543,12 +532,13 @@ class LayerManagerNode(Node):
         assert self.bindings is not None
         self._driving = True
         driver = self.bindings
+        deadline = self._calls_deadline(*command) if command else None
 
         def work() -> None:
             from contextros.ros.bindings import BindingError
 
             try:
-                driver.switch(old, new)
+                driver.switch(old, new, deadline)
                 error = ""
             except BindingError as failure:
                 error = str(failure)
@@ -559,6 +549,19 @@ class LayerManagerNode(Node):
             self._driven_guard.trigger()
 
         threading.Thread(target=work, name="contextros-bindings", daemon=True).start()
+
+    def _calls_deadline(self, command: ActivationCommand, received: float) -> Deadline:
+        """When a command's parameter and lifecycle calls must be over: when its caller gives
+        up (its deadline + REPLY_MARGIN, as LayerClient does). A drive started before the
+        deadline is carried through (`_on_driven`), but not past that: no one would hear its
+        outcome, and a call cut short is rolled back."""
+        from contextros.ros.bindings import Deadline
+        from contextros.ros.client import REPLY_MARGIN
+
+        # (the protocol's deadline: the command's timeout, or the manager's default)
+        timeout = command.timeout if command.timeout > 0 else self.settings.default_timeout
+        why = f"what was left of the command's timeout of {timeout:g} s + {REPLY_MARGIN:g} s"
+        return Deadline(received + timeout + REPLY_MARGIN, why)
 
     def _on_driven(self) -> None:
         with self._driven_lock:
@@ -579,7 +582,7 @@ class LayerManagerNode(Node):
             if error:
                 result = ActivationResult(
                     False,
-                    f"{error}; nothing changed",
+                    error,  # what failed and what became of the changes (the driver says)
                     self.protocol.state.epoch,
                     self.protocol.state.active,
                     elapsed=time.monotonic() - received,
@@ -602,27 +605,35 @@ class LayerManagerNode(Node):
         self._watch_next()
 
     def _reconcile(self) -> None:
-        """States not made by a command (recovery), or a command whose outcome differed
-        from its preview: bring the ROS side to the published state. After a failure, the
+        """States not made by a command (recovery), a command whose outcome differed
+        from its preview, or a switch left half-done (the manager was killed during it, a
+        rollback failed): bring the ROS side to the published state. After a failure, the
         same target is tried again only after a delay (`RECONCILE_RETRY`, doubling)."""
         if self.bindings is None or self._driving or self.protocol.recovering:
             return
         active = self.protocol.state.active
-        if self.bindings.applied == active:
+        if self.bindings.applied == active and not self.bindings.unsettled:
             self._reconcile_failures, self._reconcile_failed_for = 0, None
             return
         if not self.bindings.plan(self.bindings.applied, active):
-            self.bindings.applied = active
+            self.bindings.settled(active)
             return
         if active == self._reconcile_failed_for and time.monotonic() < self._reconcile_after:
             return
         self._reconcile_target = active
+        self._reconcile_heals = self.bindings.unsettled
         self._drive(None, self.bindings.applied, active)
 
     def _reconciled(self, error: str) -> None:
         """A reconcile's outcome: on failure, when to try again."""
         if not error:
             self._reconcile_failures, self._reconcile_failed_for = 0, None
+            if self._reconcile_heals:
+                self.log.info(
+                    "layers' ROS side brought to "
+                    f"[{', '.join(self._reconcile_target)}] after a switch that did not end: "
+                    "what it changed is given back"
+                )
             return
         target = self._reconcile_target
         if target != self._reconcile_failed_for:
