@@ -11,93 +11,41 @@ node rejects, a node that does not answer, or a failed lifecycle transition undo
 switch already did, in reverse order, and names node, parameter or transition and the reason.
 A call not answered in time has an unknown outcome: the node is read afterwards and given
 back what it had, and the message says what was found and done. What to give back is on
-disk before anything changes (`contextros.ros.binding_memory`).
+disk before anything changes (`contextros.ros.binding_memory`); the calls and their time
+limits are `contextros.ros.node_calls`.
 """
 
 from __future__ import annotations
 
 import contextlib
-import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any
 
 from contextros_interfaces.msg import BindingInfo
-from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from rcl_interfaces.msg import Parameter, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.node import Node
 
 from contextros.bindings import Bindings, LifecycleChange, ParameterChange, Plan, transitions
 from contextros.bindings.actual import ActualState, BindingKey, Reading
-from contextros.bindings.values import (
-    NOT_SET,
-    PRIMARY_STATES,
-    parameter_fields,
-    plain_value,
-    shown_parameter,
-)
+from contextros.bindings.values import NOT_SET, plain_value
 from contextros.language.bindings import LifecycleBinding, ParameterBinding
-from contextros.language.bindings import ParameterValue as Value
 from contextros.ros.binding_memory import BindingMemory, BindingMemoryFile, Configuration
 from contextros.ros.messages import seconds_to_stamp
-
-_MAX_REASON = 300
-# Each call waits this long for its answer unless told otherwise (`--binding-timeout`):
-# real drivers may take seconds to configure or activate.
-CALL_TIMEOUT = 10.0
-# How long a call waits for the node's service to be in the ROS graph (a node that is
-# down), beyond the first seconds after the start while services are still being discovered.
-SERVICE_WAIT = 2.0
-# A node that did not answer in time may still be busy with that request: it is read again
-# (to learn what happened) for up to this many call timeouts, while it is in a transition too.
-PATIENCE_AFTER_A_TIMEOUT = 3
-_POLL = 0.1  # seconds between reads of a node caught in a lifecycle transition
-T = TypeVar("T")
+from contextros.ros.node_calls import CALL_TIMEOUT as CALL_TIMEOUT
+from contextros.ros.node_calls import BindingError as BindingError
+from contextros.ros.node_calls import CallTimedOut as CallTimedOut
+from contextros.ros.node_calls import Deadline as Deadline
+from contextros.ros.node_calls import InTransition as InTransition
+from contextros.ros.node_calls import NodeCalls
+from contextros.ros.node_calls import shown as shown
+from contextros.ros.node_calls import to_parameter_value as to_parameter_value
 
 
-class BindingError(Exception):
-    """A switch's ROS side could not be done; the message says why and what was undone."""
-
-
-class CallTimedOut(BindingError):
-    """A request went out and no answer came in time: whether the node did it is unknown."""
-
-
-class InTransition(BindingError):
-    """A lifecycle node answered with a transition state (configuring, activating, ...)."""
-
-
-@dataclass(frozen=True)
-class Deadline:
-    """The moment (monotonic) by which a command's calls must be over, and why, for messages."""
-
-    at: float
-    why: str
-
-
-def _printable(text: str) -> str:
-    """A reason that came from another node, fit for a message: printable, bounded."""
-    clean = "".join(c if c.isprintable() else "?" for c in str(text))
-    return clean if len(clean) <= _MAX_REASON else clean[:_MAX_REASON] + "..."
-
-
-def to_parameter_value(value: Value | None, like: Any = None) -> Any:
-    """A ParameterValue message; an integer goes to a double parameter as a double."""
-    kind, field_name, plain = parameter_fields(value, NOT_SET if like is None else like.type)
-    message = ParameterValue(type=kind)
-    if field_name:
-        setattr(message, field_name, plain)
-    return message
-
-
-shown = shown_parameter  # a ParameterValue as text, for messages
-
-
-class BindingDriver:
+class BindingDriver(NodeCalls):
     """Applies a `Bindings` plan from one configuration to the next, with rollback."""
 
     def __init__(
@@ -109,23 +57,15 @@ class BindingDriver:
         discovery_time: float = 5.0,
         memory: Path | None = None,
     ) -> None:
-        self.node = node
+        super().__init__(node, call_timeout, discovery_time)
         self.bindings = bindings
-        self.call_timeout = call_timeout
-        # Until this (monotonic) time, a node's services may still be being discovered: a
-        # call waits for them until then, not just `SERVICE_WAIT`.
-        self.discovered_by = time.monotonic() + discovery_time
         # The configuration ROS reflects, the values and states to give back, and what a
         # switch may have left half-done (binding_memory says the invariants).
         self.kept = BindingMemory()
-        self._clients: dict[tuple[str, str], Any] = {}
         # (node, parameter or "" for lifecycle) -> the last result of applying it.
         self._results: dict[tuple[str, str], BindingResult] = {}
         # What the switches read and set on the nodes, for the actual state (`take_readings`).
         self._readings: list[tuple[BindingKey, Reading]] = []
-        self._lock = threading.Lock()
-        # The running command's calls end by then (None: each waits `call_timeout`).
-        self._deadline: Deadline | None = None
         # Where `kept` is across restarts (next to the state file).
         self.memory = memory
         self._file = BindingMemoryFile(memory) if memory is not None else None
@@ -370,7 +310,7 @@ class BindingDriver:
     def _parameter_back(self, node: str, name: str, previous: Any) -> str:
         """After a set of `name` timed out: read what the node has, and set `previous`
         again if it is not that; what was found and done."""
-        value = self._read_after_a_timeout(lambda: self._get(node, name))
+        value = self.read_after_a_timeout(lambda: self._get(node, name))
         self._seen((node, name), value)
         if value == previous:
             return f"{node} still had {name} = {shown(previous)}"
@@ -383,7 +323,7 @@ class BindingDriver:
         (waiting while it is in a transition) and bring it back to `previous`; what was
         found and done. BindingError, naming the state the node is left in, if it cannot."""
         try:
-            state = self._read_after_a_timeout(lambda: self._get_state(node))
+            state = self.read_after_a_timeout(lambda: self._get_state(node))
         except InTransition as error:
             raise BindingError(f"{error}: left there (it was {previous} before {after})") from None
         except BindingError as error:
@@ -405,20 +345,6 @@ class BindingDriver:
         self._seen((node, ""), previous)
         labels = ", ".join(label for _, label in path)
         return f"lifecycle node {node} was {state}: brought back to {previous} ({labels})"
-
-    def _read_after_a_timeout(self, read: Callable[[], T]) -> T:
-        """`read()` of a node that did not answer in time: it may still be busy with that
-        request, so a read that times out, or finds it in a transition, is asked again
-        for up to PATIENCE_AFTER_A_TIMEOUT call timeouts."""
-        give_up = time.monotonic() + PATIENCE_AFTER_A_TIMEOUT * self.call_timeout
-        while True:
-            try:
-                return read()
-            except (CallTimedOut, InTransition) as error:
-                if time.monotonic() >= give_up:
-                    raise
-                if isinstance(error, InTransition):
-                    time.sleep(_POLL)
 
     # -- the actual state: what the nodes have (contextros.bindings.actual) -------------
 
@@ -507,91 +433,6 @@ class BindingDriver:
                 _fill_actual(info, actual, index)
             infos.append(info)
         return infos
-
-    # -- service calls ------------------------------------------------------------------
-
-    def _client(self, node: str, kind: str, service_type: Any) -> Any:
-        with self._lock:
-            client = self._clients.get((node, kind))
-            if client is None:
-                client = self.node.create_client(service_type, f"{node}/{kind}")
-                self._clients[(node, kind)] = client
-        return client
-
-    def _call(self, node: str, kind: str, service_type: Any, request: Any, what: str) -> Any:
-        client = self._client(node, kind, service_type)
-        limit, why = self._time_left()
-        if limit <= 0:
-            raise BindingError(f"node {node}: {what} not asked: no time left ({why})")
-        wait = min(limit, max(SERVICE_WAIT, self.discovered_by - time.monotonic()))
-        if not client.wait_for_service(timeout_sec=wait):
-            raise BindingError(f"node {node} does not answer on {node}/{kind} ({what})")
-        limit, why = self._time_left()
-        future = client.call_async(request)
-        finished = threading.Event()
-        future.add_done_callback(lambda _: finished.set())
-        if not finished.wait(max(limit, 0.0)):
-            client.remove_pending_request(future)
-            within = f"{limit:.3g} s ({why})" if why else f"{limit:g} s"
-            raise CallTimedOut(f"node {node} did not answer {what} within {within}")
-        response = future.result()
-        if response is None:
-            raise BindingError(f"node {node}: {what} failed ({future.exception()})")
-        return response
-
-    def _time_left(self) -> tuple[float, str]:
-        """How long the next call may wait for its answer, and why not `call_timeout`
-        ("" when it is): the command's deadline comes first."""
-        deadline = self._deadline
-        if deadline is not None:
-            left = deadline.at - time.monotonic()
-            if left < self.call_timeout:
-                return left, deadline.why
-        return self.call_timeout, ""
-
-    def _get(self, node: str, name: str) -> Any:
-        response = self._call(
-            node,
-            "get_parameters",
-            GetParameters,
-            GetParameters.Request(names=[name]),
-            f"reading parameter {name}",
-        )
-        values = list(response.values)
-        return values[0] if len(values) == 1 else ParameterValue()
-
-    def _set(self, node: str, name: str, value: Any, layer: str = "") -> None:
-        request = SetParameters.Request(parameters=[Parameter(name=name, value=value)])
-        what = f"setting parameter {name} to {shown(value)}"
-        response = self._call(node, "set_parameters", SetParameters, request, what)
-        results = list(response.results)
-        if len(results) != 1 or not results[0].successful:
-            reason = _printable(results[0].reason) if results else "no result"
-            by = f" (for layer {layer})" if layer else ""
-            raise BindingError(
-                f"node {node} rejected parameter {name} = {shown(value)}{by}: "
-                f"{reason or 'no reason given'}"
-            )
-
-    def _get_state(self, node: str) -> str:
-        response = self._call(
-            node, "get_state", GetState, GetState.Request(), "its lifecycle state"
-        )
-        state = PRIMARY_STATES.get(response.current_state.id)
-        if state is None:
-            label = _printable(response.current_state.label)
-            raise InTransition(f"lifecycle node {node} is in transition state {label!r}")
-        return state
-
-    def _change_state(
-        self, node: str, transition_id: int, label: str, layer: str = "", current: str = ""
-    ) -> None:
-        request = ChangeState.Request(transition=Transition(id=transition_id, label=label))
-        response = self._call(node, "change_state", ChangeState, request, f"transition {label}")
-        if not response.success:
-            by = f" (for layer {layer})" if layer else ""
-            state = f" from {current}" if current else ""
-            raise BindingError(f"lifecycle node {node}: transition {label}{state} failed{by}")
 
 
 @dataclass(frozen=True)
