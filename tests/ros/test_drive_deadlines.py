@@ -18,7 +18,7 @@ from tests.ros.processes import HERE, ProcessGroup
 from tests.ros.system import LIVENESS, wait_for_manager, wait_registry
 from tests.ros.test_ros_bindings import max_speed
 
-SLOW_SET = 1.8  # seconds each parameter call of the base node takes (the manager waits 2 s)
+SLOW_SET = 1.8  # seconds each parameter call of the base node takes (its calls may take 1 + 2 s)
 
 
 def test_a_command_whose_drive_outlasts_its_timeout_is_carried_through(
