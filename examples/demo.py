@@ -34,7 +34,7 @@ BEHAVIOUR = {
 }
 EXPECTED_CONTEXTS = ["Indoor", "Outdoor", "Indoor"]
 
-SWITCHED = re.compile(r"switched to (\w+): (\d+) nodes applied it in ([\d.]+) ms")
+SWITCHED = re.compile(r"switched to (\w+): (\d+) node\(s\) applied it in ([\d.]+) ms")
 JOINED = re.compile(r"participant (/\w+) joined")
 RULES = REPOSITORY / "examples/cleaner/location.layers"
 POSITION = re.compile(r"position from the (\w+) now")
