@@ -3,8 +3,9 @@
 One succeeds only if every participant live when it was issued, every node it named and at
 least the count it asked for (one at least) applied its epoch or a newer one; else it fails
 naming the nodes and why. A command naming a layer whose effect the manager applies itself
-(`ManagerSettings.applied_by_manager`: its bindings, set before the state is published), or
-one implying such a layer, needs no node: with none live it is applied by 0 nodes. The
+(`ManagerSettings.applied_by_manager`: its bindings, set before the state is published; or a
+layer only its layer files declare), or one implying such a layer, needs no node: with none
+live it is applied by 0 nodes. The
 answer carries its own epoch and that epoch's active layers.
 """
 
@@ -105,7 +106,9 @@ class Acknowledgements(ManagerBase):
         acknowledged = self._acknowledged_names(pending)
         absent = [n for n in pending.command.expect_nodes if n not in acknowledged]
         problems = [f"expected node {listing(absent)} did not apply it"] if absent else []
-        wanted = max(pending.command.expect_count, 0 if self._applied_by_manager(pending) else 1)
+        wanted = pending.command.expect_count
+        if not wanted and not acknowledged and not self._applied_by_manager(pending):
+            wanted = 1  # at least one node, unless the manager applies its effect itself
         if len(acknowledged) < wanted:
             problems.append(
                 f"applied by {len(acknowledged)} node(s), {wanted} expected"
@@ -164,8 +167,15 @@ class Acknowledgements(ManagerBase):
 
     def _applied_by_manager(self, pending: PendingActivation) -> bool:
         """The manager itself applies the effect of a layer the command names, or of one
-        they imply (a system's mode: its parts' parameters and lifecycle states)."""
-        applied = self.settings.applied_by_manager
+        they imply (a system's mode: its parts' parameters and lifecycle states): one with
+        bindings, or one its layer files declare and no live participant implements (it
+        took that layer on its own word: its effect is the manager's, its rules' and what
+        it implies)."""
+        implemented = {
+            d.name for record in self._participants.values() for d in record.report.layers
+        }
+        own = frozenset(d.name for d in self.settings.layer_files) - implemented
+        applied = self.settings.applied_by_manager | own
         if not applied:
             return False
         declarations = self.declarations()
