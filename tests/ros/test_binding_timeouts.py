@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import signal
+import threading
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -149,3 +150,34 @@ def test_a_manager_killed_mid_switch_gives_the_nodes_back_their_own_values(
         assert killed.request(["Flight"], synchronous=True, timeout=10).success
         assert killed.request([], ["Flight"], synchronous=True, timeout=10).success
         assert (propeller(killed), speed(killed)) == ("unconfigured", 1.0)
+
+
+def test_a_manager_stopped_mid_switch_says_what_it_leaves_and_answers(
+    client: LayerClient, processes: ProcessGroup, tmp_path: Path
+) -> None:
+    """SIGTERM while the propeller activates: the manager exits 0 as documented (it exited 1
+    with a traceback when the signal came during a take), but first logs what the nodes
+    keep, and answers the waiting command if a reply can still go out."""
+    answers: list[object] = []
+    with robot(processes, tmp_path, "/stopping") as (near, plain, manager):
+
+        def ask() -> None:
+            try:
+                answers.append(near.request(["Flight"], synchronous=True, timeout=10).message)
+            except ManagerError as error:
+                answers.append(str(error))
+
+        asking = threading.Thread(target=ask, daemon=True)
+        asking.start()
+        plain.wait_for(lambda events: any(e["event"] == "activating" for e in events), 10)
+        manager.signal(signal.SIGTERM)
+        status = manager.wait_exit(10)
+        assert status == 0, f"exit status {status}: {manager.output()}"
+        asking.join(15)
+    said = manager.output()
+    assert "stopped while setting the parameters and lifecycle states of [Flight]" in said, said
+    assert "nothing gives them back (no --state-file)" in said, said
+    # Answered when the context still lets a reply out (a signal may have shut it first).
+    assert answers and any(
+        words in str(answers[0]) for words in ("stopped while setting", "is unknown")
+    ), answers

@@ -277,6 +277,7 @@ class LayerManagerNode(Node):
         # answer's `elapsed` count from there).
         self._commands: deque[tuple[ActivationCommand, float]] = deque()
         self._driving = False
+        self._driving_to: tuple[str, ...] = ()
         self._driven: list[tuple[tuple[ActivationCommand, float] | None, str]] = []
         self._watch_jobs_done: list[WatchJob] = []  # (under `_driven_lock` too)
         self._driven_lock = threading.Lock()
@@ -531,6 +532,7 @@ class LayerManagerNode(Node):
     ) -> None:
         assert self.bindings is not None
         self._driving = True
+        self._driving_to = new
         driver = self.bindings
         deadline = self._calls_deadline(*command) if command else None
 
@@ -549,6 +551,27 @@ class LayerManagerNode(Node):
             self._driven_guard.trigger()
 
         threading.Thread(target=work, name="contextros-bindings", daemon=True).start()
+
+    def destroy_node(self) -> None:
+        """Stopped (Ctrl-C, SIGTERM) while setting parameters and lifecycle states: say what
+        that leaves, and answer the commands still waiting, before going."""
+        if self._driving and not self.stepped_down:
+            after = (
+                f"a manager restarted with the state file {self.state_file.path} gives them back"
+                if self.state_file
+                else "nothing gives them back (no --state-file)"
+            )
+            stopped = (
+                "the Layer manager stopped while setting the parameters and lifecycle states "
+                f"of [{', '.join(self._driving_to)}]: the nodes keep what was set so far; {after}"
+            )
+            self.log.warning(stopped)
+            self._flush_logs()
+            state = self.protocol.state
+            self._responses.answer_all(
+                ActivationResult(False, f"{stopped}; no state published", state.epoch, state.active)
+            )
+        super().destroy_node()
 
     def _calls_deadline(self, command: ActivationCommand, received: float) -> Deadline:
         """When a command's parameter and lifecycle calls must be over: when its caller gives

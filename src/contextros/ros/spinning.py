@@ -57,6 +57,7 @@ def spin_nodes(
     """
     executor = WaitLoop(nodes) if lean is not False else _rclpy_executor(nodes)
     deadline = None if timeout is None else time.monotonic() + timeout
+    _signalled.clear()
     previous = _catch_signals()
     try:
         while rclpy.ok():
@@ -75,9 +76,11 @@ def spin_nodes(
                 nodes[0].get_logger().info(f"spinning with rclpy's executor: {unsupported.reason}")
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except RCLError:
-        # A signal shut the context down between two spins: same as above.
-        if rclpy.ok():
+    except Exception:
+        # A signal shut the context down between two spins (RCLError), or interrupted a take:
+        # pybind11 turns the KeyboardInterrupt into a RuntimeError ("Unable to convert call
+        # argument") or a SystemError ("returned a result with an exception set"). As above.
+        if rclpy.ok() and not _signalled.is_set():
             raise
     finally:
         try:
@@ -172,8 +175,14 @@ def bounded_teardown(limit: float | None) -> Iterator[None]:
 _Handlers = dict[signal.Signals, Any]
 
 
+# Set by a signal while spinning: its KeyboardInterrupt, raised inside a pybind11 call,
+# may come out as another exception (see spin_nodes).
+_signalled = threading.Event()
+
+
 def _interrupt(signum: int, frame: FrameType | None) -> None:
     del signum, frame
+    _signalled.set()
     raise KeyboardInterrupt
 
 
