@@ -35,3 +35,12 @@ def before_environment(tree: Path) -> dict[str, str]:
             "code; see benchmarks/code_before.py"
         )
     return environment
+
+
+def trees_to_compare() -> dict[str, Path | None]:
+    """The code to measure: "after" (this tree, None) and, with `CONTEXTROS_BEFORE` set,
+    "before" (that tree), side by side."""
+    trees: dict[str, Path | None] = {"after": None}
+    if before := os.environ.get("CONTEXTROS_BEFORE"):
+        trees["before"] = Path(before)
+    return trees

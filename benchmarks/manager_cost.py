@@ -31,7 +31,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks.activation import NODES_PER_PROCESS, _wait_for_lines
-from benchmarks.code_before import before_environment
+from benchmarks.code_before import before_environment, trees_to_compare
 
 NODE_COUNTS = (1, 16, 64)
 ROUNDS = 40
@@ -183,10 +183,7 @@ def caller(count: int) -> None:
 def run(
     node_counts: tuple[int, ...] = NODE_COUNTS, rounds: int = ROUNDS, profile: str = ""
 ) -> list[dict[str, Any]]:
-    before = os.environ.get("CONTEXTROS_BEFORE")
-    trees: dict[str, Path | None] = {"after": None}
-    if before:
-        trees["before"] = Path(before)
+    trees = trees_to_compare()
     rows = []
     for count in node_counts:
         print(f"  manager cost: {count} participants", flush=True)

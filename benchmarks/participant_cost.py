@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import signal
 import subprocess
 import sys
@@ -28,6 +27,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from benchmarks.code_before import trees_to_compare
 from benchmarks.manager_cost import BLOCK, _System, cost_row
 
 NODE_COUNTS = (16, 64)
@@ -42,10 +42,7 @@ PROFILE_ROUNDS = 400
 def run(
     node_counts: tuple[int, ...] = NODE_COUNTS, rounds: int = ROUNDS, profile: str = ""
 ) -> list[dict[str, Any]]:
-    before = os.environ.get("CONTEXTROS_BEFORE")
-    trees: dict[str, Path | None] = {"after": None}
-    if before:
-        trees["before"] = Path(before)
+    trees = trees_to_compare()
     rows = []
     for count in node_counts:
         if profile:
